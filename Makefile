@@ -1,0 +1,44 @@
+# softflow: every result of the paper from one command.
+#   make reproduce   run every notebook (PROFILE=paper by default; PROFILE=ci for minutes)
+#   make test        unit tests + nbval of the committed notebooks (ci profile)
+SHELL := /bin/bash
+PYTHON_BASE ?= python3.11
+VENV := .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.lock-installed
+PROFILE ?= paper
+NOTEBOOKS := $(sort $(wildcard notebooks/[0-9]*.ipynb))
+
+.PHONY: venv test reproduce bench lab clean lock
+
+venv: $(STAMP)
+
+# Rebuilt whenever the lock changes; a half-built venv never gets the stamp.
+$(STAMP): environment.lock pyproject.toml
+	rm -rf $(VENV)
+	$(PYTHON_BASE) -m venv $(VENV)
+	$(PY) -m pip install --quiet -r environment.lock
+	$(PY) -m pip install --quiet --no-deps --no-build-isolation -e .
+	cp environment.lock $(STAMP)
+
+test: $(STAMP)
+	$(PY) -m pytest tests notebooks --nbval --nbval-current-env --nbval-sanitize-with tests/nbval_sanitize.cfg
+
+reproduce: $(STAMP)
+	mkdir -p build/notebooks/$(PROFILE)
+	for nb in $(NOTEBOOKS); do \
+		echo "== $$nb ($(PROFILE))"; \
+		$(VENV)/bin/papermill --cwd notebooks -p profile $(PROFILE) "$$nb" "build/notebooks/$(PROFILE)/$$(basename $$nb)" || exit 1; \
+	done
+
+bench: $(STAMP)
+	$(PY) benchmarks/bench_simulator.py
+
+lab: $(STAMP)
+	$(VENV)/bin/jupyter lab notebooks
+
+lock:  # refresh environment.lock from the current .venv (after adding a dependency)
+	{ head -2 environment.lock; $(PY) -m pip freeze --exclude-editable; } > environment.lock.new && mv environment.lock.new environment.lock
+
+clean:
+	rm -rf build $(VENV) .pytest_cache

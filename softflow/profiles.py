@@ -1,0 +1,56 @@
+"""Named run sizes: "ci" finishes in minutes on 2 cores, "paper" is the real experiment."""
+from __future__ import annotations
+
+import os
+import random
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .checks import check_choice
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+@dataclass(frozen=True)
+class Profile:
+    """Every size knob of a run in one place; notebooks take only its name."""
+
+    name: str
+    n_episodes: int  # training-data episodes
+    episode_seconds: float = 5.0  # s, length of one excitation episode
+    bench_episodes: int = 64  # episodes timed in notebook 01's speed summary
+    seed: int = 0
+
+    @property
+    def output_dir(self) -> Path:
+        """Figures and tables: committed figures/ for the paper run, build/ci otherwise."""
+        return REPO / "figures" if self.name == "paper" else REPO / "build" / self.name
+
+
+PROFILES = {
+    "ci": Profile("ci", n_episodes=200, bench_episodes=64),
+    "paper": Profile("paper", n_episodes=3000, bench_episodes=3000),
+}
+
+
+def get_profile(name: str) -> Profile:
+    check_choice(name, "profile", PROFILES)
+    return PROFILES[name]
+
+
+def setup(name: str) -> Profile:
+    """One call at the top of every notebook: seeds, threads and plot style fixed, so
+    outputs are deterministic (nbval compares them)."""
+    profile = get_profile(name)
+    random.seed(profile.seed)
+    np.random.seed(profile.seed)
+    np.set_printoptions(precision=4, suppress=True)
+    os.environ.setdefault("OMP_NUM_THREADS", "2")
+    import matplotlib
+
+    matplotlib.rcParams.update({"figure.dpi": 100, "savefig.dpi": 150, "figure.figsize": (6.4, 4.0),
+                                "axes.grid": True, "grid.alpha": 0.3, "savefig.bbox": "tight"})
+    profile.output_dir.mkdir(parents=True, exist_ok=True)
+    return profile

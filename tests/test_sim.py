@@ -1,0 +1,140 @@
+"""The GVS simulator against closed-form and independent mechanics (issue: simulator checks 1-8)."""
+import numpy as np
+import pytest
+
+from softflow.validation import (MM, arc_tip, convergence_study, euler_bernoulli_frequencies, heavy_cantilever_tip,
+                                kelvin_voigt_damping_ratio, linear_modes, released_energy, smooth_random_actuation)
+from softflow.robots import HW_ROBOT, SIM_ROBOT
+from softflow.sim import Simulator
+
+
+@pytest.mark.parametrize("direction", [(1, 0), (0, 1), (-1, 0), (0, -1), (np.sqrt(0.5), np.sqrt(0.5))])
+def test_static_tip_is_the_circular_arc_without_gravity(direction):
+    u = np.array([0.5, 2.0, 4.0])[:, None] * np.array(direction)[None]
+    tip = Simulator(SIM_ROBOT, gravity="none").static_tip(u)
+    np.testing.assert_allclose(tip, arc_tip(u, SIM_ROBOT), atol=0.1 * MM)
+
+
+def test_first_two_bending_frequencies_match_euler_bernoulli():
+    frequencies, _ = linear_modes(Simulator(SIM_ROBOT, gravity="none", damping=False))
+    in_plane = frequencies[::2][:2]  # the two bending planes are identical: modes come in pairs
+    np.testing.assert_allclose(frequencies[1::2][:2], in_plane, rtol=1e-9)
+    np.testing.assert_allclose(in_plane, euler_bernoulli_frequencies(SIM_ROBOT, 2), rtol=0.02)
+    np.testing.assert_allclose(euler_bernoulli_frequencies(SIM_ROBOT, 2), [1.43, 8.95], rtol=0.01)
+
+
+def test_first_mode_damping_ratio_is_kelvin_voigt():
+    _, ratios = linear_modes(Simulator(SIM_ROBOT, gravity="none"))
+    expected = kelvin_voigt_damping_ratio(SIM_ROBOT, euler_bernoulli_frequencies(SIM_ROBOT, 1)[0])
+    assert ratios[0] == pytest.approx(expected, rel=0.10)
+
+
+def test_free_vibration_of_the_simulated_rod_has_the_first_mode_period_and_decay():
+    """End to end through the time stepper: period and logarithmic decrement of a small release."""
+    sim = Simulator(SIM_ROBOT, gravity="none")
+    q0 = sim.static_q(np.array([[0.2, 0.0]]))
+    q, qd = sim.integrate(np.zeros((1, 300, 2)), q0, np.zeros_like(q0))
+    y = sim.tip_state(q[0], qd[0])[:, 1]
+    peaks = [t for t in range(1, len(y) - 1) if y[t] > y[t - 1] and y[t] >= y[t + 1] and y[t] > 0]
+    period = np.diff(peaks).mean() * sim.dt
+    f1 = euler_bernoulli_frequencies(SIM_ROBOT, 1)[0]
+    zeta = kelvin_voigt_damping_ratio(SIM_ROBOT, f1)
+    assert period == pytest.approx(1 / (f1 * np.sqrt(1 - zeta**2)), rel=0.03)
+    decrement = np.log(y[peaks[0]] / y[peaks[1]])
+    assert decrement == pytest.approx(2 * np.pi * zeta / np.sqrt(1 - zeta**2), rel=0.15)
+
+
+def test_energy_of_a_released_undamped_rod_is_conserved():
+    """A bend of 0.1 m at the tip (a quarter of L), released without damping or gravity, for 5 s."""
+    drifts = []
+    for substeps in (4, 8):
+        energy = released_energy(SIM_ROBOT, np.array([[1.0, 0.5]]), 500, substeps=substeps)[0]
+        drifts.append(np.abs(energy - energy[0]).max() / energy[0])
+    assert drifts[0] < 0.01
+    assert drifts[1] < drifts[0] / 2  # time-integration error, not a model inconsistency
+
+
+def test_energy_terms_are_consistent():
+    """The convective force is the one that makes d/dt (qd^T M qd / 2) = qd^T (M qdd + c)."""
+    sim = Simulator(SIM_ROBOT, gravity="none")
+    rng = np.random.default_rng(0)
+    q, qd, qdd = rng.normal(size=(3, 2, sim.nq))
+    h = 1e-6
+    kinetic = lambda t: 0.5 * np.einsum("bi,bij,bj->b", qd + t * qdd, sim.mass_matrix(q + t * qd + 0.5 * t * t * qdd),
+                                        qd + t * qdd)
+    numeric = (kinetic(h) - kinetic(-h)) / (2 * h)
+    f, Jp, M, _ = sim._dynamics_terms(q)
+    c = sim._convective_force(Jp, q, qd, f["positions"])
+    np.testing.assert_allclose(numeric, np.einsum("bi,bi->b", qd, np.einsum("bij,bj->bi", M, qdd) + c), rtol=1e-6)
+
+
+@pytest.fixture(scope="module")
+def random_actuation():
+    return smooth_random_actuation(2, 500, seed=7)
+
+
+def test_u_sign_flip_mirrors_and_u_swap_swaps_axes(random_actuation):
+    sim = Simulator(SIM_ROBOT)
+    u = random_actuation[:, :100]
+    X, X_neg, X_swap = sim.rollout(u), sim.rollout(-u), sim.rollout(u[..., ::-1])
+    mirror = np.array([1, -1, -1, 1, -1, -1])
+    np.testing.assert_allclose(X_neg, X * mirror, atol=1e-9)
+    np.testing.assert_allclose(X_swap, X[..., [0, 2, 1, 3, 5, 4]], atol=1e-9)
+
+
+def test_horizontal_sag_matches_the_heavy_elastica():
+    tip = Simulator(HW_ROBOT, gravity="horizontal").static_tip(np.zeros((1, 2)))[0]
+    expected = heavy_cantilever_tip(HW_ROBOT)
+    assert expected[2] < -0.1  # a genuinely large deflection
+    np.testing.assert_allclose(tip, expected, atol=1 * MM)
+
+
+def test_tip_converges_with_basis_order_and_step(random_actuation):
+    errors = convergence_study(SIM_ROBOT, random_actuation, dict(order=7, n_segments=64, substeps=8),
+                               {"order": [dict(order=k) for k in range(4)]})["order"]
+    assert all(later < earlier for earlier, later in zip(errors, errors[1:])), errors
+    assert errors[-1] < 0.5 * MM  # the default order
+    halved = convergence_study(SIM_ROBOT, random_actuation, {}, {"substeps": [dict(substeps=8)]})["substeps"][0]
+    assert halved < 0.1 * MM
+
+
+@pytest.mark.parametrize("gravity", ["vertical", "horizontal", "none"])
+def test_inverse_static_recovers_u(gravity):
+    grid = np.linspace(-4, 4, 9)
+    u = np.stack(np.meshgrid(grid, grid), -1).reshape(-1, 2)
+    sim = Simulator(SIM_ROBOT, gravity=gravity)
+    np.testing.assert_allclose(sim.inverse_static(sim.static_tip(u)), u, atol=1e-3)
+
+
+def test_rollout_starts_at_rest_in_gravity_equilibrium():
+    sim = Simulator(HW_ROBOT, gravity="horizontal")
+    X = sim.rollout(np.zeros((2, 20, 2)))
+    np.testing.assert_allclose(X[:, :, :3], np.broadcast_to(sim.static_tip(np.zeros((1, 2))), (2, 21, 3)), atol=1e-9)
+    np.testing.assert_allclose(X[:, :, 3:], 0, atol=1e-9)
+
+
+@pytest.mark.parametrize("bad, message", [
+    (np.full((1, 5, 2), np.nan), "finite"),
+    (np.full((1, 5, 2), np.inf), "finite"),
+    (np.zeros((5, 2)), r"shape \(any, any, 2\)"),
+    (np.zeros((1, 5, 3)), r"shape \(any, any, 2\)"),
+    (np.zeros((1, 5, 2), dtype=complex), "real numbers"),
+    (np.zeros((1, 5, 2), dtype=bool), "real numbers"),
+    ([["a", "b"]], "real numbers"),
+])
+def test_rollout_rejects_bad_input(bad, message):
+    with pytest.raises(ValueError, match=message):
+        Simulator(SIM_ROBOT).rollout(bad)
+
+
+@pytest.mark.parametrize("call, arg", [("static_tip", np.zeros((2, 3))), ("inverse_static", np.zeros((2, 2))),
+                                       ("static_tip", np.array([[np.nan, 0.0]]))])
+def test_statics_reject_bad_input(call, arg):
+    with pytest.raises(ValueError):
+        getattr(Simulator(SIM_ROBOT), call)(arg)
+
+
+@pytest.mark.parametrize("kwargs", [dict(gravity="sideways"), dict(order=-1), dict(substeps=0), dict(n_segments=2.5)])
+def test_simulator_rejects_bad_options(kwargs):
+    with pytest.raises(ValueError):
+        Simulator(SIM_ROBOT, **kwargs)
