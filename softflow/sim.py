@@ -30,7 +30,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 from numpy.polynomial import legendre
-from tqdm.auto import tqdm
+from tqdm import tqdm
 
 from .checks import as_real_array, check_choice
 from .robots import Robot
@@ -341,7 +341,8 @@ class Simulator:
     def _map_chunks(self, work, B, progress):
         """Run work(slice) over cache-sized chunks of the batch on a thread pool (numpy
         releases the GIL) and concatenate the results along the batch axis."""
-        chunks = [slice(i, min(i + self.chunk_size, B)) for i in range(0, B, self.chunk_size)]
+        size = min(self.chunk_size, -(-B // self.threads))  # every thread gets work
+        chunks = [slice(i, min(i + size, B)) for i in range(0, B, size)]
         with ThreadPoolExecutor(self.threads) as pool, tqdm(total=B, disable=not progress, desc="simulating",
                                                                unit="episode") as bar:
             results = []
