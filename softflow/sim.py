@@ -275,11 +275,32 @@ class Simulator:
         """Equilibrium tip position for constant actuation u (B, 2) -> (B, 3)."""
         return self.tip_positions(self.static_q(u))
 
+    def _fit_static(self, target, rows, u, tol=1e-10, max_iter=50, u_limit=np.inf):
+        """Gauss-Newton on u so that the equilibrium tip matches ``target`` in coordinates
+        ``rows``, through d p/d u = Jp_tip Kt^-1 B. Returns u, the tip and d p/d u (B, 3, 2).
+        Stops with a RuntimeError as soon as an iterate needs |u| > u_limit."""
+        q = None
+        for _ in range(max_iter):
+            if np.abs(u).max() > u_limit:
+                raise RuntimeError(f"static fit needs |u| > {u_limit} N")
+            q, Kt = self._equilibrium(u, q)
+            f = self._frames(q)
+            J_tip = self._position_jacobians(f)[:, -1]  # (B, 3, nq)
+            dp_du = J_tip @ np.linalg.solve(Kt, np.broadcast_to(self.cable_map, Kt.shape[:1] + self.cable_map.shape))
+            J = dp_du[:, rows]
+            error = target[:, rows] - f["positions"][:, -1, rows]
+            JT = J.transpose(0, 2, 1)
+            du = np.linalg.solve(JT @ J, JT @ error[..., None])[..., 0]  # normal equations
+            u = u + du
+            if np.max(np.abs(du)) < tol:
+                return u, f["positions"][:, -1], dp_du
+        raise RuntimeError(f"static fit did not converge in {max_iter} Gauss-Newton steps")
+
     def inverse_static(self, p, tol=1e-10, max_iter=50):
         """Least-squares actuation whose equilibrium tip is closest to p (B, 3) -> (B, 2).
 
         Starts from the gravity-free arc through p (closed form) and refines with
-        Gauss-Newton through the equilibrium, d p/d u = Jp_tip Kt^-1 B.
+        Gauss-Newton through the equilibrium.
         """
         p, _ = as_real_array(p, "p", (None, 3))
         r = self.robot
@@ -288,19 +309,25 @@ class Simulator:
         heading = np.arctan2(p[:, 2], p[:, 1])
         magnitude = bend / r.length * r.bending_stiffness / r.cable_radius
         u = magnitude[:, None] * np.stack([np.cos(heading), np.sin(heading)], -1)
-        q = None
-        for _ in range(max_iter):
-            q, Kt = self._equilibrium(u, q)
-            f = self._frames(q)
-            J_tip = self._position_jacobians(f)[:, -1]  # (B, 3, nq)
-            J_u = J_tip @ np.linalg.solve(Kt, np.broadcast_to(self.cable_map, Kt.shape[:1] + self.cable_map.shape))
-            error = p - f["positions"][:, -1]
-            JT = J_u.transpose(0, 2, 1)
-            du = np.linalg.solve(JT @ J_u, JT @ error[..., None])[..., 0]  # normal equations, 3 x 2
-            u = u + du
-            if np.max(np.abs(du)) < tol:
-                return u
-        raise RuntimeError(f"inverse statics did not converge in {max_iter} Gauss-Newton steps")
+        return self._fit_static(p, [0, 1, 2], u, tol, max_iter)[0]
+
+    def static_lift(self, yz, u_max: float = 4.0):
+        """The equilibrium whose tip has lateral position yz (B, 2): tip p (B, 3),
+        actuation u (B, 2) and d p / d(y, z) (B, 3, 2), for lifting y-z paths to 3D.
+
+        Raises ValueError for a point outside the static workspace |u_i| <= u_max."""
+        yz, _ = as_real_array(yz, "yz", (None, 2))
+        r = self.robot
+        u = 2 * yz / r.length**2 * r.bending_stiffness / r.cable_radius  # small-deflection guess
+        try:
+            u, tip, dp_du = self._fit_static(np.concatenate([np.zeros((len(yz), 1)), yz], 1), [1, 2], u,
+                                             u_limit=2 * u_max)
+        except (RuntimeError, np.linalg.LinAlgError) as error:
+            raise ValueError("y-z path leaves the reachable static workspace (no equilibrium found)") from error
+        worst = np.abs(u).max()
+        if worst > u_max:
+            raise ValueError(f"y-z path leaves the reachable static workspace: needs |u| = {worst:.2f} N > {u_max} N")
+        return tip, u, dp_du @ np.linalg.inv(dp_du[:, 1:])
 
     # ------------------------------------------------------------------ dynamics
     def rest_q(self):

@@ -1,0 +1,206 @@
+"""Excitation families, the polynomial-excitation dataset and its content-hash cache.
+
+The paper trains on 3000 episodes of random polynomial actuation, 5 s each at 0.01 s.
+Episodes are stored whole (u and the 6D tip states); training tuples and context
+windows are views on them. The cache file name is a hash of everything that made it,
+so a change of profile, robot or simulator code rebuilds it, and a corrupt or
+partial file is detected and rebuilt, never used.
+"""
+from __future__ import annotations
+
+import hashlib
+import inspect
+import json
+import os
+import zipfile
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.polynomial import legendre
+from numpy.lib.stride_tricks import sliding_window_view
+
+from . import sim as sim_module
+from .profiles import REPO, Profile
+from .robots import SIM_ROBOT, Robot
+from .sim import Simulator
+
+U_MAX = 4.0  # N, actuation range [-U_MAX, U_MAX] of each differential tension
+DT = 0.01  # s, sampling interval
+DATA_DIR = REPO / "data"
+BLOCK_EPISODES = 500  # episodes simulated and saved together: the unit of resumption
+
+
+# ---------------------------------------------------------------------------- excitation families
+def polynomial_excitation(n_episodes: int, n_steps: int, rng: np.random.Generator, degrees=(1, 8),
+                          amplitudes=(0.5, U_MAX)) -> np.ndarray:
+    """Training family: one random polynomial per cable pair over the episode, (B, T, 2).
+
+    Degree uniform in ``degrees``; Legendre coefficients N(0, 1) so every degree up to
+    the highest contributes; the curve is scaled to a peak |u| drawn uniformly from
+    ``amplitudes`` (N), so episodes stay inside [-U_MAX, U_MAX] and span small to full bends.
+    """
+    t = np.linspace(-1.0, 1.0, n_steps)
+    basis = legendre.legvander(t, degrees[1])  # (T, degree + 1)
+    degree = rng.integers(degrees[0], degrees[1] + 1, (n_episodes, 2))
+    coefficients = rng.normal(size=(n_episodes, 2, degrees[1] + 1))
+    coefficients[np.arange(degrees[1] + 1) > degree[..., None]] = 0.0
+    curves = coefficients @ basis.T  # (B, 2, T)
+    peak = rng.uniform(*amplitudes, (n_episodes, 2, 1))
+    return (peak * curves / np.abs(curves).max(-1, keepdims=True)).transpose(0, 2, 1)
+
+
+def sum_of_sines_excitation(n_episodes: int, n_steps: int, seed: int, u_max: float = U_MAX,
+                            frequencies=(0.1, 1.5)) -> np.ndarray:
+    """Held-out family: four sines per cable pair with random frequencies (Hz) and phases,
+    scaled to peak at u_max, (B, T, 2). Unlike the polynomial training data."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n_steps) * DT
+    f = rng.uniform(*frequencies, (n_episodes, 2, 4))
+    phases = rng.uniform(0, 2 * np.pi, (n_episodes, 2, 4))
+    waves = np.sin(2 * np.pi * f[..., None] * t + phases[..., None]).sum(2)  # (B, 2, T)
+    return (u_max * waves / np.abs(waves).max(-1, keepdims=True)).transpose(0, 2, 1)
+
+
+def mixed_excitation(n_episodes: int, n_steps: int, seed: int, u_max: float = 3.5) -> np.ndarray:
+    """Complex-3D family (paper Sec. IV-C): a sinusoid, a sigmoid step and a linear ramp per
+    cable pair, random in every parameter, scaled to peak at u_max: (B, T, 2). Starts at 0."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n_steps) * DT
+    duration = n_steps * DT
+    shape = (n_episodes, 2, 1)
+    sine = rng.uniform(0.5, 1.0, shape) * np.sin(2 * np.pi * rng.uniform(0.2, 1.0, shape) * t + rng.uniform(0, 2 * np.pi, shape))
+    centre, width = rng.uniform(0.25, 0.75, shape) * duration, rng.uniform(0.1, 0.5, shape)
+    sigmoid = rng.uniform(-1, 1, shape) / (1 + np.exp(-(t - centre) / width))
+    ramp = rng.uniform(-1, 1, shape) * t / duration
+    signal = sine + sigmoid + ramp
+    signal -= signal[..., :1]  # from rest, no jump at t = 0
+    return (u_max * signal / np.abs(signal).max(-1, keepdims=True)).transpose(0, 2, 1)
+
+
+# ---------------------------------------------------------------------------- the dataset
+@dataclass(frozen=True)
+class Dataset:
+    """Whole episodes: u (E, T, 2), states (E, T+1, 6), and an episode split."""
+
+    u: np.ndarray
+    states: np.ndarray
+    train: np.ndarray  # episode indices
+    val: np.ndarray
+    test: np.ndarray
+
+    @property
+    def n_transitions(self) -> int:
+        return self.u.shape[0] * self.u.shape[1]
+
+    def transitions(self, episodes):
+        """(x_t, x_{t+1}, u_t) of the given episodes, each (E', T, .); views when episodes is a slice."""
+        X = self.states[episodes]
+        return X[:, :-1], X[:, 1:], self.u[episodes]
+
+    def windows(self, context: int):
+        """Views (E, T-context+1, context+1, 6) of states: for each t >= context-1 the
+        states x_{t-context+1} .. x_{t+1}, the input of a sequence model predicting u_t."""
+        return sliding_window_view(self.states, context + 1, axis=1).transpose(0, 1, 3, 2)
+
+
+def split_episodes(n_episodes: int, seed: int, fractions=(0.8, 0.1)):
+    """Shuffled episode indices split train / validation / test (never by sample)."""
+    order = np.random.default_rng(seed).permutation(n_episodes)
+    n_train, n_val = int(fractions[0] * n_episodes), int(fractions[1] * n_episodes)
+    return np.sort(order[:n_train]), np.sort(order[n_train:n_train + n_val]), np.sort(order[n_train + n_val:])
+
+
+def cache_path(kind: str, spec: dict, modules, data_dir: Path = DATA_DIR) -> Path:
+    """data/<kind>-<hash>.npz, the hash taken over ``spec`` (JSON) and the source of ``modules``."""
+    source = "".join(inspect.getsource(module) for module in modules)
+    digest = hashlib.sha256((json.dumps(spec, sort_keys=True, default=str) + source).encode()).hexdigest()[:16]
+    Path(data_dir).mkdir(parents=True, exist_ok=True)
+    return Path(data_dir) / f"{kind}-{digest}.npz"
+
+
+def read_npz(path: Path) -> dict | None:
+    """All arrays of an npz file, or None when it is missing, truncated or corrupt (zip CRC)."""
+    try:
+        with np.load(path) as f:
+            return {k: f[k] for k in f.files}
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile):
+        return None
+
+
+def write_npz_atomic(path: Path, **arrays):
+    """Write an npz next to its destination, then rename: readers never see half a file."""
+    tmp = path.with_name(path.name + f".tmp{os.getpid()}")
+    with open(tmp, "wb") as f:
+        np.savez(f, **arrays)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+
+
+def _dataset_from(arrays: dict | None) -> Dataset | None:
+    """A Dataset from cached arrays, or None when any is missing or inconsistent."""
+    try:
+        data = Dataset(**{k: arrays[k] for k in ("u", "states", "train", "val", "test")})
+    except (KeyError, TypeError):
+        return None
+    E, T, _ = data.u.shape
+    consistent = (data.states.shape == (E, T + 1, 6) and np.isfinite(data.states).all()
+                  and np.abs(data.u).max() <= U_MAX and len(data.train) + len(data.val) + len(data.test) == E)
+    return data if consistent else None
+
+
+def load_dataset(profile: Profile, robot: Robot = SIM_ROBOT, gravity: str = "vertical", *,
+                 progress: bool = True, data_dir: Path = DATA_DIR) -> Dataset:
+    """The profile's polynomial-excitation dataset, generated on first use and cached.
+
+    Generation runs in blocks saved as they finish, so an interrupted run resumes where
+    it stopped; the final file appears atomically.
+    """
+    spec = dict(profile=asdict(profile), robot=asdict(robot), gravity=gravity)
+    path = cache_path(f"dataset-{profile.name}", spec, (sim_module, inspect.getmodule(load_dataset)), data_dir)
+    cached = _dataset_from(read_npz(path))
+    if cached is not None:
+        return cached
+    n_steps = int(round(profile.episode_seconds / DT))
+    u = polynomial_excitation(profile.n_episodes, n_steps, np.random.default_rng(profile.seed))
+    simulator = Simulator(robot, gravity=gravity)
+    blocks_dir = path.with_suffix(".blocks")
+    blocks_dir.mkdir(exist_ok=True)
+    states = []
+    for start in range(0, profile.n_episodes, BLOCK_EPISODES):
+        stop = min(start + BLOCK_EPISODES, profile.n_episodes)
+        block_path = blocks_dir / f"{start:06d}.npz"
+        done = (read_npz(block_path) or {}).get("states")
+        if done is None or done.shape != (stop - start, n_steps + 1, 6):
+            done = simulator.rollout(u[start:stop], progress=progress)
+            write_npz_atomic(block_path, states=done)
+        states.append(done)
+    train, val, test = split_episodes(profile.n_episodes, profile.seed)
+    write_npz_atomic(path, u=u, states=np.concatenate(states), train=train, val=val, test=test)
+    for block_path in blocks_dir.iterdir():
+        block_path.unlink()
+    blocks_dir.rmdir()
+    return _dataset_from(read_npz(path))
+
+
+def coverage(training_states, query_states, held_out_states, quantile: float = 0.99, max_points: int = 200_000,
+             seed: int = 0) -> float:
+    """Fraction of query states (M, 6) inside the region the training states (N, 6) cover.
+
+    "Inside" means: nearer (in units of the training standard deviation per coordinate)
+    to a training state than ``quantile`` of held-out training-distribution states
+    (e.g. validation episodes) are. So 0.99 is what in-distribution data scores."""
+    from scipy.spatial import cKDTree
+
+    rng = np.random.default_rng(seed)
+    train = np.asarray(training_states).reshape(-1, 6)
+    if len(train) > max_points:
+        train = train[rng.choice(len(train), max_points, replace=False)]
+    scale = train.std(0)
+    tree = cKDTree(train / scale)
+    held_out = np.asarray(held_out_states).reshape(-1, 6)
+    held_out = held_out[rng.choice(len(held_out), min(len(held_out), 20_000), replace=False)]
+    radius = np.quantile(tree.query(held_out / scale)[0], quantile)
+    distance = tree.query(np.asarray(query_states).reshape(-1, 6) / scale)[0]
+    return float(np.mean(distance <= radius))
