@@ -78,3 +78,42 @@ def episode(X, u, dt: float):
     ax2.set(xlabel="t [s]", ylabel="u [N]")
     ax2.legend()
     return fig
+
+
+def excitations(u, dt: float, n_show: int = 6):
+    """A few training actuation episodes, u_1 and u_2 over time."""
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.2), sharey=True)
+    t = np.arange(u.shape[1]) * dt
+    for i, ax in enumerate(axes):
+        ax.plot(t, u[:n_show, :, i].T, lw=1)
+        ax.set(xlabel="t [s]", ylabel=f"$u_{i + 1}$ [N]")
+    return fig
+
+
+def workspace(train_states, references, max_points: int = 20000, seed: int = 0):
+    """Training tip positions (y-z density) with every reference path drawn over them,
+    and the tip-speed distribution of the training data with the references' speeds marked."""
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4.5), gridspec_kw={"width_ratios": [1.1, 1]})
+    points = train_states.reshape(-1, 6)
+    sample = points[np.random.default_rng(seed).choice(len(points), min(max_points, len(points)), replace=False)]
+    ax.plot(sample[:, 1] * MM, sample[:, 2] * MM, ".", ms=1, color="0.5", alpha=0.3)
+    for r in references:
+        ax.plot(r.states[r.mask, 1] * MM, r.states[r.mask, 2] * MM, lw=1.2, label=r.name)
+    ax.set(xlabel="y [mm]", ylabel="z [mm]", aspect="equal", title="training tips (grey) and references")
+    ax.legend(fontsize=6, ncol=2, loc="upper right")
+    speed = np.linalg.norm(points[:, 3:], axis=1)
+    ax2.hist(speed, bins=80, density=True, color="0.6", label="training")
+    for r in references:
+        ax2.axvline(np.linalg.norm(r.states[r.mask, 3:], axis=1).max(), lw=0.8, alpha=0.7)
+    ax2.set(xlabel="tip speed [m/s]", ylabel="density", yscale="log", title="speed; lines: reference peaks")
+    return fig
+
+
+def coverage_bars(names, values, goal: float = 0.95):
+    """Fraction of each reference's states inside the training distribution."""
+    fig, ax = plt.subplots(figsize=(8, 3.2))
+    ax.bar(names, values, color=["C0" if v >= goal else "C3" for v in values])
+    ax.axhline(goal, color="k", ls="--", lw=1)
+    ax.set(ylabel="coverage", ylim=(0, 1.05))
+    ax.tick_params(axis="x", rotation=60, labelsize=8)
+    return fig

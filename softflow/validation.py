@@ -82,17 +82,6 @@ def linear_modes(sim: Simulator):
     return np.abs(poles) / (2 * np.pi), -poles.real / np.abs(poles)
 
 
-def smooth_random_actuation(n_episodes: int, n_steps: int, seed: int, dt: float = 0.01, u_max: float = 4.0):
-    """Sums of four sines per cable pair with random frequencies (0.1-1.5 Hz) and phases,
-    scaled to peak at u_max: (B, T, 2). A family unlike the polynomial training data."""
-    rng = np.random.default_rng(seed)
-    t = np.arange(n_steps) * dt
-    frequencies = rng.uniform(0.1, 1.5, (n_episodes, 2, 4))
-    phases = rng.uniform(0, 2 * np.pi, (n_episodes, 2, 4))
-    waves = np.sin(2 * np.pi * frequencies[..., None] * t + phases[..., None]).sum(2)  # (B, 2, T)
-    return (u_max * waves / np.abs(waves).max(-1, keepdims=True)).transpose(0, 2, 1)
-
-
 def tip_error(X, reference) -> np.ndarray:
     """Largest tip-position distance (m) over time, per episode."""
     return np.linalg.norm(X[..., :3] - reference[..., :3], axis=-1).max(-1)

@@ -3,7 +3,8 @@ import numpy as np
 import pytest
 
 from softflow.validation import (MM, arc_tip, convergence_study, euler_bernoulli_frequencies, heavy_cantilever_tip,
-                                kelvin_voigt_damping_ratio, linear_modes, released_energy, smooth_random_actuation)
+                                kelvin_voigt_damping_ratio, linear_modes, released_energy)
+from softflow.data import sum_of_sines_excitation
 from softflow.robots import HW_ROBOT, SIM_ROBOT
 from softflow.sim import Simulator
 
@@ -70,7 +71,7 @@ def test_energy_terms_are_consistent():
 
 @pytest.fixture(scope="module")
 def random_actuation():
-    return smooth_random_actuation(2, 500, seed=7)
+    return sum_of_sines_excitation(2, 500, seed=7)
 
 
 def test_u_sign_flip_mirrors_and_u_swap_swaps_axes(random_actuation):
