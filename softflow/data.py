@@ -1,8 +1,8 @@
 """Excitation families, the polynomial-excitation dataset and its content-hash cache.
 
 The paper trains on 3000 episodes of random polynomial actuation, 5 s each at 0.01 s.
-Episodes are stored whole (u and the 6D tip states); training tuples and context
-windows are views on them. The cache file name is a hash of everything that made it,
+Episodes are stored whole (u and the 6D tip states); training tuples are views on
+them, and the context windows of sequence models are gathered per batch, never copied whole. The cache file name is a hash of everything that made it,
 so a change of profile, robot or simulator code rebuilds it, and a corrupt or
 partial file is detected and rebuilt, never used.
 """
@@ -18,7 +18,6 @@ from pathlib import Path
 
 import numpy as np
 from numpy.polynomial import legendre
-from numpy.lib.stride_tricks import sliding_window_view
 
 from . import sim as sim_module
 from .profiles import REPO, Profile
@@ -88,6 +87,7 @@ class Dataset:
     train: np.ndarray  # episode indices
     val: np.ndarray
     test: np.ndarray
+    key: str = ""  # cache file stem: names the exact data a model was trained on
 
     @property
     def n_transitions(self) -> int:
@@ -97,11 +97,6 @@ class Dataset:
         """(x_t, x_{t+1}, u_t) of the given episodes, each (E', T, .); views when episodes is a slice."""
         X = self.states[episodes]
         return X[:, :-1], X[:, 1:], self.u[episodes]
-
-    def windows(self, context: int):
-        """Views (E, T-context+1, context+1, 6) of states: for each t >= context-1 the
-        states x_{t-context+1} .. x_{t+1}, the input of a sequence model predicting u_t."""
-        return sliding_window_view(self.states, context + 1, axis=1).transpose(0, 1, 3, 2)
 
 
 def split_episodes(n_episodes: int, seed: int, fractions=(0.8, 0.1)):
@@ -138,16 +133,22 @@ def write_npz_atomic(path: Path, **arrays):
     os.replace(tmp, path)
 
 
-def _dataset_from(arrays: dict | None) -> Dataset | None:
+def _dataset_from(arrays: dict | None, key: str) -> Dataset | None:
     """A Dataset from cached arrays, or None when any is missing or inconsistent."""
     try:
-        data = Dataset(**{k: arrays[k] for k in ("u", "states", "train", "val", "test")})
+        data = Dataset(**{k: arrays[k] for k in ("u", "states", "train", "val", "test")}, key=key)
     except (KeyError, TypeError):
         return None
     E, T, _ = data.u.shape
     consistent = (data.states.shape == (E, T + 1, 6) and np.isfinite(data.states).all()
                   and np.abs(data.u).max() <= U_MAX and len(data.train) + len(data.val) + len(data.test) == E)
     return data if consistent else None
+
+
+def dataset_path(profile: Profile, robot: Robot = SIM_ROBOT, gravity: str = "vertical", data_dir: Path = DATA_DIR) -> Path:
+    """Where the profile's dataset is cached; the name changes with anything that made it."""
+    spec = dict(profile=asdict(profile), robot=asdict(robot), gravity=gravity)
+    return cache_path(f"dataset-{profile.name}", spec, (sim_module, inspect.getmodule(dataset_path)), data_dir)
 
 
 def load_dataset(profile: Profile, robot: Robot = SIM_ROBOT, gravity: str = "vertical", *,
@@ -157,9 +158,8 @@ def load_dataset(profile: Profile, robot: Robot = SIM_ROBOT, gravity: str = "ver
     Generation runs in blocks saved as they finish, so an interrupted run resumes where
     it stopped; the final file appears atomically.
     """
-    spec = dict(profile=asdict(profile), robot=asdict(robot), gravity=gravity)
-    path = cache_path(f"dataset-{profile.name}", spec, (sim_module, inspect.getmodule(load_dataset)), data_dir)
-    cached = _dataset_from(read_npz(path))
+    path = dataset_path(profile, robot, gravity, data_dir)
+    cached = _dataset_from(read_npz(path), path.stem)
     if cached is not None:
         return cached
     n_steps = int(round(profile.episode_seconds / DT))
@@ -181,7 +181,7 @@ def load_dataset(profile: Profile, robot: Robot = SIM_ROBOT, gravity: str = "ver
     for block_path in blocks_dir.iterdir():
         block_path.unlink()
     blocks_dir.rmdir()
-    return _dataset_from(read_npz(path))
+    return _dataset_from(read_npz(path), path.stem)
 
 
 def coverage(training_states, query_states, held_out_states, quantile: float = 0.99, max_points: int = 200_000,

@@ -36,15 +36,11 @@ def test_dataset_states_are_the_rollout_of_the_stored_u(tmp_path, sim):
     assert sorted(np.concatenate([D.train, D.val, D.test])) == list(range(TINY.n_episodes))
 
 
-def test_transitions_and_windows_are_views(tmp_path):
+def test_transitions_are_views(tmp_path):
     D = data.load_dataset(TINY, data_dir=tmp_path, progress=False)
     x, x_next, u = D.transitions(slice(0, 4))
     assert all(np.shares_memory(a, b) for a, b in ((x, D.states), (x_next, D.states), (u, D.u)))
     np.testing.assert_array_equal(x[:, 1:], x_next[:, :-1])
-    windows = D.windows(context=5)
-    assert np.shares_memory(windows, D.states)
-    t = 7  # the window predicting u_t ends with x_t, x_{t+1}
-    np.testing.assert_array_equal(windows[2, t - 4], D.states[2, t - 4:t + 2])
 
 
 def test_cache_is_reused_and_a_corrupt_file_is_rebuilt(tmp_path, monkeypatch):

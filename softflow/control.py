@@ -1,0 +1,101 @@
+"""Open-loop control: plan u_t = g(x*_t, x*_{t+1}) for a whole reference in one batched call,
+run the plan in the simulator from rest, and score it."""
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import torch
+
+from .checks import as_real_array
+from .data import DT, U_MAX
+from .models.common import one_thread
+from .metrics import actuation_mae, input_energy, phase_lag, tracking_rmse
+from .profiles import REPO
+from .sim import Simulator
+from .train import gather_windows, load_checkpoint, model_from_checkpoint
+
+SHIPPED = REPO / "checkpoints"  # paper-profile weights, committed
+TRAINED = REPO / "data" / "checkpoints"  # anything else, rebuilt on demand
+
+
+def checkpoint_path(name: str, profile: str) -> Path:
+    return SHIPPED / f"{name}.pt" if profile == "paper" else TRAINED / profile / f"{name}.pt"
+
+
+class Controller:
+    """A trained inverse model used open loop: ``plan`` maps references to actuation."""
+
+    def __init__(self, model: torch.nn.Module, name: str):
+        self.model, self.name = model.eval(), name
+
+    def plan(self, reference, **options) -> np.ndarray:
+        """(T+1, 6) or (B, T+1, 6) reference -> (T, 2) or (B, T, 2) actuation (N), every
+        step predicted in one batched call (the plan depends on the reference only)."""
+        X, unbatched = as_real_array(reference, "reference", (None, None, 6), allow_unbatched=True)
+        B, T = X.shape[0], X.shape[1] - 1
+        if T < 1:
+            raise ValueError("reference must have at least 2 samples")
+        episodes, steps = np.repeat(np.arange(B), T), np.tile(np.arange(T), B)
+        windows = torch.as_tensor(gather_windows(X, episodes, steps, self.model.context), dtype=torch.float32)
+        with torch.inference_mode(), one_thread():
+            u = self.model.predict(windows, **options).numpy().astype(np.float64).reshape(B, T, 2)
+        return u[0] if unbatched else u
+
+
+def load_controller(name: str, profile: str = "paper") -> Controller:
+    """The trained model ``name`` ("mlp", "lstm", "transformer", ...) of a profile; paper-profile
+    weights ship with the repository, so this works right after a clone."""
+    path = checkpoint_path(name, profile)
+    if not path.exists():
+        raise ValueError(f"no trained {name!r} for profile {profile!r} at {path}; "
+                         f"rebuild it with: PROFILE={profile} make reproduce  (or run the notebook that trains it)")
+    checkpoint = load_checkpoint(path)
+    if "data_key" in checkpoint and checkpoint["data_key"] != expected_data_key(profile):
+        warnings.warn(f"{path} was trained on another dataset or simulator version; "
+                      f"rebuild it with: PROFILE={profile} make reproduce", stacklevel=2)
+    return Controller(model_from_checkpoint(checkpoint, path), name)
+
+
+def expected_data_key(profile: str) -> str:
+    from .data import dataset_path
+    from .profiles import get_profile
+
+    return dataset_path(get_profile(profile)).stem
+
+
+def evaluate(controller, references, sim: Simulator, u_limit: float = U_MAX):
+    """Plan every reference, clip to the actuator range, run all plans open loop from rest
+    in one batched rollout, and score them. Returns a DataFrame (one row per reference)
+    and {name: dict(u, states)} with the plans and the achieved trajectories."""
+    plans = [np.clip(controller.plan(r.states), -u_limit, u_limit) for r in references]
+    longest = max(len(u) for u in plans)
+    padded = np.stack([np.concatenate([u, np.repeat(u[-1:], longest - len(u), 0)]) for u in plans])  # hold the last u
+    achieved = sim.rollout(padded)
+    rows, runs = [], {}
+    for r, u, X in zip(references, plans, achieved):
+        X = X[: r.n_steps + 1]
+        masked = r.mask
+        row = dict(model=controller.name, reference=r.name, family=r.family,
+                   rmse_mm=1e3 * tracking_rmse(X, r.states, masked),
+                   phase_lag_s=phase_lag(X[masked, 1:3], r.states[masked, 1:3], DT),
+                   input_energy=input_energy(u, DT))
+        if r.u_true is not None:
+            row["mae_u1"], row["mae_u2"] = actuation_mae(u, r.u_true)
+        rows.append(row)
+        runs[r.name] = dict(u=u, states=X)
+    return pd.DataFrame(rows), runs
+
+
+def table_rows(results: pd.DataFrame) -> pd.DataFrame:
+    """Per model: Table I (RMSE mean over shapes / random) and Table II (phase lag on shapes,
+    input energy on random references)."""
+    shapes, random = results[results.family == "shape"], results[results.family == "random"]
+    return pd.DataFrame({
+        "rmse_shape_mm": shapes.groupby("model").rmse_mm.mean(),
+        "rmse_random_mm": random.groupby("model").rmse_mm.mean(),
+        "phase_lag_shape_s": shapes.groupby("model").phase_lag_s.mean(),
+        "input_energy_random": random.groupby("model").input_energy.mean(),
+    })

@@ -1,0 +1,108 @@
+"""Inverse models, the shared training loop and open-loop control."""
+import numpy as np
+import pytest
+import torch
+
+from softflow import control, data, train, trajectories
+from softflow.models.common import Normalizer
+from softflow.profiles import Profile
+from softflow.robots import SIM_ROBOT
+from softflow.sim import Simulator
+
+SMALL = Profile("small", n_episodes=24, episode_seconds=2.0)
+QUICK = train.TrainConfig(epochs=3, steps_per_epoch=60, batch_size=256, warmup_steps=20, val_samples=2000, patience=3)
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    return data.load_dataset(SMALL, data_dir=tmp_path_factory.mktemp("data"), progress=False)
+
+
+def test_normalizer_round_trip_and_constant_channel_guard():
+    x = torch.tensor([[1.0, 5.0], [3.0, 5.0], [5.0, 5.0]])
+    norm = Normalizer(2)
+    norm.fit(x)
+    assert torch.allclose(norm.unnormalize(norm.normalize(x)), x)
+    assert torch.isfinite(norm.normalize(x)).all()  # the constant channel does not divide by zero
+
+
+def test_windows_repeat_the_rest_state_before_the_start():
+    states = np.arange(2 * 5 * 6, dtype=float).reshape(2, 5, 6)
+    window = train.gather_windows(states, [1], [1], context=3)[0]
+    np.testing.assert_array_equal(window, states[1, [0, 0, 1, 2]])
+
+
+@pytest.mark.parametrize("name", ["mlp", "lstm", "transformer"])
+def test_training_beats_the_mean_on_held_out_episodes(name, dataset, tmp_path):
+    model, checkpoint = train.train(name, dataset, QUICK, tmp_path / f"{name}.pt", progress=False)
+    window, u = train.Sampler(dataset, dataset.test, model.context, np.random.default_rng(0)).fixed(3000, 0)
+    with torch.no_grad():
+        held_out_mse = torch.mean((model.predict(window) - u) ** 2).item()
+    variance = torch.var(u, dim=0).sum().item() / 2
+    assert held_out_mse < 0.5 * variance  # explains more than half of the held-out variance
+    assert checkpoint["wall_seconds"] > 0 and len(checkpoint["history"]) == checkpoint["epochs_run"]
+
+
+def test_an_interrupted_run_resumes_to_the_same_weights(dataset, tmp_path, monkeypatch):
+    reference, _ = train.train("mlp", dataset, QUICK, tmp_path / "straight.pt", progress=False)
+    calls = {"n": 0}
+    real_loss = train.InverseMLP.compute_loss
+
+    def interrupt_in_epoch_two(self, *args):
+        calls["n"] += 1
+        if calls["n"] == QUICK.steps_per_epoch + 10:
+            raise KeyboardInterrupt
+        return real_loss(self, *args)
+
+    monkeypatch.setattr(train.InverseMLP, "compute_loss", interrupt_in_epoch_two)
+    with pytest.raises(KeyboardInterrupt):
+        train.train("mlp", dataset, QUICK, tmp_path / "resumed.pt", progress=False)
+    assert (tmp_path / "resumed.pt.latest").exists() and not (tmp_path / "resumed.pt").exists()
+    monkeypatch.setattr(train.InverseMLP, "compute_loss", real_loss)
+    resumed, _ = train.train("mlp", dataset, QUICK, tmp_path / "resumed.pt", progress=False)
+    for a, b in zip(reference.state_dict().values(), resumed.state_dict().values()):
+        torch.testing.assert_close(a, b)
+
+
+def test_a_corrupt_checkpoint_is_reported_by_path(tmp_path):
+    path = tmp_path / "mlp.pt"
+    path.write_bytes(b"not a checkpoint")
+    with pytest.raises(ValueError, match=str(path)):
+        train.load_checkpoint(path)
+
+
+def test_missing_controller_names_the_rebuild_command():
+    with pytest.raises(ValueError, match="make reproduce"):
+        control.load_controller("mlp", profile="nonexistent")
+
+
+def test_plan_shapes_and_batching(dataset, tmp_path):
+    model, _ = train.train("lstm", dataset, QUICK, tmp_path / "lstm.pt", progress=False)
+    controller = control.Controller(model, "lstm")
+    reference = dataset.states[0]
+    single = controller.plan(reference)
+    batched = controller.plan(np.stack([reference, dataset.states[1]]))
+    assert single.shape == (reference.shape[0] - 1, 2) and batched.shape == (2,) + single.shape
+    np.testing.assert_allclose(batched[0], single, atol=1e-5)
+    with pytest.raises(ValueError, match="finite"):
+        controller.plan(np.full((5, 6), np.nan))
+
+
+class _Oracle:
+    """Returns the true actuation of an actuated reference."""
+    name = "oracle"
+
+    def __init__(self, references):
+        self.u = {r.states.tobytes(): r.u_true for r in references}
+
+    def plan(self, reference):
+        return self.u[np.asarray(reference).tobytes()]
+
+
+def test_evaluate_scores_a_perfect_plan_as_perfect():
+    sim = Simulator(SIM_ROBOT)
+    references = trajectories.random_references(sim, n=2, seconds=2.0)
+    results, runs = control.evaluate(_Oracle(references), references, sim)
+    assert results.rmse_mm.max() < 1e-6
+    assert results.mae_u1.max() == 0 and abs(results.phase_lag_s).max() < 1e-3
+    np.testing.assert_allclose(results.input_energy, [np.sum(r.u_true**2) * data.DT for r in references])
