@@ -147,7 +147,7 @@ def _dataset_from(arrays: dict | None, key: str) -> Dataset | None:
 
 def dataset_path(profile: Profile, robot: Robot = SIM_ROBOT, gravity: str = "vertical", data_dir: Path = DATA_DIR) -> Path:
     """Where the profile's dataset is cached; the name changes with anything that made it."""
-    spec = dict(profile=asdict(profile), robot=asdict(robot), gravity=gravity)
+    spec = dict(profile=profile.name, **profile.data_spec, robot=asdict(robot), gravity=gravity)
     return cache_path(f"dataset-{profile.name}", spec, (sim_module, inspect.getmodule(dataset_path)), data_dir)
 
 

@@ -117,3 +117,41 @@ def coverage_bars(names, values, goal: float = 0.95):
     ax.set(ylabel="coverage", ylim=(0, 1.05))
     ax.tick_params(axis="x", rotation=60, labelsize=8)
     return fig
+
+
+def tracking_grid(runs: dict, references: dict, names):
+    """y-z tracking per reference (columns) for several models: the reference dashed, each
+    model's open-loop tip path solid; the Initial point (diamond) and Start point (dot)."""
+    fig, axes = plt.subplots(1, len(names), figsize=(3.6 * len(names), 3.6), squeeze=False)
+    for ax, name in zip(axes[0], names):
+        r = references[name]
+        ax.plot(r.states[r.mask, 1] * MM, r.states[r.mask, 2] * MM, "k--", lw=1.5, label="reference")
+        for model, model_runs in runs.items():
+            X = model_runs[name]["states"]
+            ax.plot(X[r.mask, 1] * MM, X[r.mask, 2] * MM, lw=1, label=model)
+        start = np.argmax(r.mask)
+        ax.plot(r.states[0, 1] * MM, r.states[0, 2] * MM, "kD", mfc="none", label="Initial")
+        ax.plot(r.states[start, 1] * MM, r.states[start, 2] * MM, "ko", label="Start")
+        ax.set(title=name, xlabel="y [mm]", ylabel="z [mm]", aspect="equal")
+    axes[0, -1].legend(fontsize=7)
+    return fig
+
+
+def inputs_grid(runs: dict, references: dict, names, dt: float):
+    """u_1 (top) and u_2 (bottom) over time per reference for several models; the true
+    actuation dashed where the reference has one."""
+    fig, axes = plt.subplots(2, len(names), figsize=(3.6 * len(names), 4.6), sharex="col", squeeze=False)
+    for col, name in enumerate(names):
+        r = references[name]
+        for row in range(2):
+            ax = axes[row, col]
+            for model, model_runs in runs.items():
+                u = model_runs[name]["u"]
+                ax.plot(np.arange(len(u)) * dt, u[:, row], lw=0.9, label=model)
+            if r.u_true is not None:
+                ax.plot(np.arange(len(r.u_true)) * dt, r.u_true[:, row], "k--", lw=1, label="true")
+            ax.set(ylabel=f"$u_{row + 1}$ [N]")
+        axes[0, col].set_title(name)
+        axes[1, col].set_xlabel("t [s]")
+    axes[0, -1].legend(fontsize=7)
+    return fig

@@ -14,6 +14,22 @@ REPO = Path(__file__).resolve().parent.parent
 
 
 @dataclass(frozen=True)
+class TrainConfig:
+    """Optimisation budget of one model (shared by every model of a profile: a fair budget)."""
+
+    epochs: int = 40
+    steps_per_epoch: int = 1000
+    batch_size: int = 512
+    lr: float = 1e-3
+    weight_decay: float = 1e-4
+    warmup_steps: int = 500
+    ema_decay: float | None = 0.999  # None: no EMA
+    patience: int = 6  # epochs without a better validation loss before stopping
+    val_samples: int = 20000
+    seed: int = 0
+
+
+@dataclass(frozen=True)
 class Profile:
     """Every size knob of a run in one place; notebooks take only its name."""
 
@@ -22,6 +38,12 @@ class Profile:
     episode_seconds: float = 5.0  # s, length of one excitation episode
     bench_episodes: int = 64  # episodes timed in notebook 01's speed summary
     seed: int = 0
+    train: TrainConfig = TrainConfig()
+
+    @property
+    def data_spec(self) -> dict:
+        """The fields that decide the dataset (its cache key): not the training budget."""
+        return dict(n_episodes=self.n_episodes, episode_seconds=self.episode_seconds, seed=self.seed)
 
     @property
     def output_dir(self) -> Path:
@@ -30,7 +52,9 @@ class Profile:
 
 
 PROFILES = {
-    "ci": Profile("ci", n_episodes=200, bench_episodes=64),
+    "ci": Profile("ci", n_episodes=200, bench_episodes=64,
+                  train=TrainConfig(epochs=4, steps_per_epoch=150, batch_size=256, warmup_steps=50, val_samples=5000,
+                                    patience=3)),
     "paper": Profile("paper", n_episodes=3000, bench_episodes=3000),
 }
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import copy
 import os
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
@@ -15,26 +15,13 @@ from tqdm import tqdm
 from .data import Dataset
 from .models.baselines import InverseLSTM, InverseMLP, InverseTransformer
 from .models.common import one_thread
+from .profiles import TrainConfig
 
 MODELS = {  # name -> (class, keyword arguments); the RF family registers itself in models.flow
     "mlp": (InverseMLP, {}),
     "lstm": (InverseLSTM, {"context": 10}),
     "transformer": (InverseTransformer, {"context": 10}),
 }
-
-
-@dataclass(frozen=True)
-class TrainConfig:
-    epochs: int = 40
-    steps_per_epoch: int = 1000
-    batch_size: int = 512
-    lr: float = 1e-3
-    weight_decay: float = 1e-4
-    warmup_steps: int = 500
-    ema_decay: float | None = 0.999  # None: no EMA
-    patience: int = 6  # epochs without a better validation loss before stopping
-    val_samples: int = 20000
-    seed: int = 0
 
 
 def build_model(name: str, **overrides) -> torch.nn.Module:

@@ -5,12 +5,12 @@ import torch
 
 from softflow import control, data, train, trajectories
 from softflow.models.common import Normalizer
-from softflow.profiles import Profile
+from softflow.profiles import Profile, TrainConfig
 from softflow.robots import SIM_ROBOT
 from softflow.sim import Simulator
 
 SMALL = Profile("small", n_episodes=24, episode_seconds=2.0)
-QUICK = train.TrainConfig(epochs=3, steps_per_epoch=60, batch_size=256, warmup_steps=20, val_samples=2000, patience=3)
+QUICK = TrainConfig(epochs=3, steps_per_epoch=60, batch_size=256, warmup_steps=20, val_samples=2000, patience=3)
 
 
 @pytest.fixture(scope="module")
