@@ -15,32 +15,38 @@ How the model is matched:
   unshearable, as ours. No gravity. Rotary inertia is PyElastica's (ours has none;
   its effect on the modes is (D/L)^2 small).
 * Clamp: PyElastica clamps the first element, whose centre then acts as the clamp,
-  and a uniform bend turns the tip a rotation kappa l / 2 short of the arc (3.8 mm at
-  u = (2, 1) with 50 elements). The rod therefore starts half an element behind the
-  origin and is half an element longer: clamp at the origin, tip at x = L, and the
-  static tip error drops from O(1/n) to O(1/n^2) (0.07 mm with 25 elements).
+  and a uniform bend turns the tip a rotation kappa l / 2 short of the arc. The rod
+  therefore starts half an element behind the origin and is half an element longer:
+  clamp at the origin, tip at x = L, and the static tip error drops from O(1/n) to
+  O(1/n^2) (u = (2, 1), 25 elements: 7.5 mm -> 0.07 mm; 2 s responses: 28 -> 0.4 mm).
 * Torsion: ours is torsion-free (kappa_3 = 0). The twist stiffness GJ is multiplied
-  by ``TORSION_FACTOR``; with PyElastica's GJ the 3-D input twists the rod by 0.14 rad,
-  which turns the cables' bending plane and moves the tip by 35 mm.
+  by ``TORSION_FACTOR``; with PyElastica's own GJ the 3-D input twists the rod, which
+  turns the cables' bending plane: 42 mm off.
 * Cables: a differential tension u applies the body-frame moment m = r (-u_2, u_1)
   (components on d1, d2; r = cable_distance/2) along the whole length, like our
   cable map. PyElastica's bending couple is B (kappa - kappa_0), so m enters as the
   rest curvature kappa_0 = B^-1 m. This yields the follower couple m at the tip and
   also the distributed twisting couple m x kappa that an internal body-fixed moment
   exerts once the rod bends out of the cables' plane; a tip couple alone misses it
-  (16 mm off for the 3-D input).
-* Damping: ours is Kelvin-Voigt, couple E I kappa + eta I kappa_dot, i.e. modal ratios
-  zeta_n = eta omega_n / (2 E) (0.11, 0.70, 1.96 for SIM_ROBOT). PyElastica has no such
-  damper; its AnalyticalLinearDamper is mass-proportional (zeta_n = gamma / (2 omega_n)),
-  so matched on mode 1 (gamma = 2 zeta_1 omega_1 = 2.0 1/s) it leaves mode 2 at
-  zeta = 0.018 and the tip 20 mm off. The dashpot itself cannot be added explicitly:
-  on an element's rotary inertia it relaxes in rho l^2 / (4 eta) ~ 1e-8 s. So the
-  same eta is used in a standard linear solid, the dashpot in series with a spring
-  ``KV_STIFFNESS_RATIO`` E, integrated exactly per step: its modulus
-  E + i omega eta / (1 + i omega tau), tau = eta / (KV_STIFFNESS_RATIO E), is
-  Kelvin-Voigt for omega tau << 1 (zeta_1 matched to 0.2 %, zeta_2,3 to 0.2, 2 %).
-  It also enters through the rest curvature: B is scaled by 1 + ratio and
-  kappa_0 += ratio / (1 + ratio) kappa_v, kappa_v being the dashpot's strain.
+  (19 mm off for the 3-D input).
+* Damping: ours is Kelvin-Voigt, couple E I kappa + eta I kappa_dot, so the modal
+  ratios are zeta_n = eta omega_n / (2 E): 0.112, 0.70, 1.97 for SIM_ROBOT (Euler-
+  Bernoulli modes 1.43, 8.95, 25.1 Hz). PyElastica has no such damper; its
+  AnalyticalLinearDamper is mass-proportional (zeta_n = gamma / (2 omega_n)), so matched
+  on mode 1 (gamma = 2 zeta_1 omega_1 = eta omega_1^2 / E = 2.01 1/s) it leaves mode 2
+  at zeta = 0.018 and the tip 19 mm off on the step. The dashpot cannot be added as an
+  explicit couple either: acting on an element's rotary inertia it relaxes in
+  rho l^2 / (4 eta) ~ 1e-8 s. So the same eta is put in a standard linear solid, the
+  dashpot in series with a spring ``KV_STIFFNESS_RATIO`` E, both parallel to E:
+  modulus E + i omega eta / (1 + i omega tau), tau = eta / (KV_STIFFNESS_RATIO E)
+  = 0.83 ms, which is Kelvin-Voigt for omega tau << 1. Mode 1 (omega_1 tau = 0.0075)
+  keeps zeta_1 = 0.112 (-0.2 %) and its frequency (+0.08 %); modes 2 and 3 get
+  zeta 0.66 and 1.28 instead of 0.70 and 1.97 (both strongly damped either way).
+  The dashpot strain kappa_v is advanced exactly each step (kappa held) and the law
+  enters PyElastica through its couple B (kappa - kappa_0): B is scaled by 1 + ratio
+  and kappa_0 = ratio / (1 + ratio) kappa_v + B^-1 m. Its stiff branch sets the
+  stable time step: 5 us at 25 elements (6.25 us diverges) where the plain rod runs
+  at 8 us.
 """
 from __future__ import annotations
 
@@ -68,7 +74,8 @@ class _BendingLaw:
         rod.bend_matrix[2, 2] *= TORSION_FACTOR
         self.rod = rod
         self.stiffness = np.stack([rod.bend_matrix[0, 0], rod.bend_matrix[1, 1]])  # (2, n-1)
-        self.decay = math.exp(-time_step * KV_STIFFNESS_RATIO * robot.youngs_modulus / robot.damping)
+        relaxation = time_step * KV_STIFFNESS_RATIO * robot.youngs_modulus / robot.damping if robot.damping else math.inf
+        self.decay = math.exp(-relaxation)  # no damping: the branch follows kappa and adds nothing
         self.viscous_kappa = np.zeros_like(self.stiffness)
         self.moment = np.zeros((2, 1))
 
@@ -94,22 +101,26 @@ def simulate(robot, u, dt: float = 0.01, duration: float | None = None, n_elemen
     default (25 elements, 5 us) is converged and within the explicit stability limit,
     which the stiff viscous branch and torsion set (see benchmarks/README.md).
     Returns times (S+1,), tip (S+1, 3) positions in m at every sample and wall_seconds,
-    the time spent integrating (setup and numba compilation excluded).
+    the time spent integrating after the first step (setup and numba's compilation,
+    which a fresh venv pays on that step, excluded).
     """
     u = np.asarray(u, dtype=float)
     if u.ndim != 2 or u.shape[1] != 2 or len(u) == 0 or not np.isfinite(u).all():
         raise ValueError(f"u must be a finite (T, 2) array; got shape {u.shape}")
     samples = len(u) if duration is None else round(duration / dt)
+    if samples < 1:
+        raise ValueError(f"duration must cover at least one sample of {dt} s; got {duration!r}")
     steps = round(dt / time_step)
     if steps < 1 or not math.isclose(steps * time_step, dt, rel_tol=1e-9):
         raise ValueError(f"time_step must divide dt; got {time_step!r} and {dt!r}")
+    h = dt / steps
 
     element = robot.length / (n_elements - 0.5)  # half an element behind the clamp
     rod = ea.CosseratRod.straight_rod(
         n_elements, np.array([-element / 2, 0.0, 0.0]), np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]),
         n_elements * element, robot.diameter / 2, robot.density,
         youngs_modulus=robot.youngs_modulus, shear_modulus=robot.youngs_modulus / 3)
-    law = _BendingLaw(rod, robot, dt / steps)
+    law = _BendingLaw(rod, robot, h)
     system = _System()
     system.append(rod)
     system.constrain(rod).using(ea.OneEndFixedBC, constrained_position_idx=(0,), constrained_director_idx=(0,))
@@ -118,12 +129,13 @@ def simulate(robot, u, dt: float = 0.01, duration: float | None = None, n_elemen
     stepper, t = ea.PositionVerlet(), 0.0
     tip = np.empty((samples + 1, 3))
     tip[0] = rod.position_collection[:, -1]
-    start = time.perf_counter()
+    start = None
     for k in range(samples):
         law.cable_moment(u[min(k, len(u) - 1)], robot.cable_radius)
         for _ in range(steps):
-            t = stepper.step(system, t, dt / steps)
+            t = stepper.step(system, t, h)
             law.after_step()
+            start = start or time.perf_counter()  # after the first step, which compiles numba's kernels
         tip[k + 1] = rod.position_collection[:, -1]
     wall = time.perf_counter() - start
     if not np.isfinite(tip).all():
@@ -164,9 +176,9 @@ def main():
         batched = (time.perf_counter() - start) / 256
         d = np.linalg.norm(result["tip"] - X, axis=1) * 1e3
         c = np.linalg.norm(result["tip"] - fine["tip"], axis=1) * 1e3
-        seconds = t[-1] + 0.01
+        seconds = len(u) * 0.01
         print(f"{name}: max {d.max():.2f} mm ({d.max() / L / 10:.2f} % of L), RMS {np.sqrt(np.mean(d**2)):.2f} mm "
-              f"({np.sqrt(np.mean(d**2)) / L / 10:.2f} % of L); PyElastica 50 vs 25 elements: max {c.max():.2f} mm")
+              f"({np.sqrt(np.mean(d**2)) / L / 10:.2f} % of L); PyElastica 50 elements/2.5 us vs 25/5 us: max {c.max():.2f} mm")
         print(f"  wall per simulated s: PyElastica {result['wall_seconds'] / seconds:.2f} s "
               f"(50 elements {fine['wall_seconds'] / seconds:.2f} s), ours {single / seconds:.3f} s single, "
               f"{batched / seconds:.4f} s per episode batched x256 -> speed-up {result['wall_seconds'] / single:.0f}x "

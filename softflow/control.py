@@ -12,6 +12,7 @@ import torch
 from .checks import as_real_array
 from .data import DT, U_MAX
 from .models.common import one_thread
+from .models.flow import RectifiedFlow
 from .metrics import actuation_mae, input_energy, phase_lag, tracking_rmse
 from .profiles import REPO
 from .sim import Simulator
@@ -26,12 +27,17 @@ def checkpoint_path(name: str, profile: str) -> Path:
 
 
 class Controller:
-    """A trained inverse model used open loop: ``plan`` maps references to actuation."""
+    """A trained inverse model used open loop: ``plan`` maps references to actuation.
 
-    def __init__(self, model: torch.nn.Module, name: str):
-        self.model, self.name = model.eval(), name
+    Generative models draw their noise z from ``seed``: by default one z per trajectory,
+    used at every step, so a plan is reproducible and temporally coherent;
+    ``plan(..., fresh_noise=True)`` draws a new z for every step instead."""
 
-    def plan(self, reference, **options) -> np.ndarray:
+    def __init__(self, model: torch.nn.Module, name: str, seed: int = 0):
+        self.model, self.name, self.seed = model.eval(), name, seed
+        self.generative = isinstance(model, RectifiedFlow)
+
+    def plan(self, reference, *, fresh_noise: bool = False, seed: int | None = None, **options) -> np.ndarray:
         """(T+1, 6) or (B, T+1, 6) reference -> (T, 2) or (B, T, 2) actuation (N), every
         step predicted in one batched call (the plan depends on the reference only)."""
         X, unbatched = as_real_array(reference, "reference", (None, None, 6), allow_unbatched=True)
@@ -40,8 +46,13 @@ class Controller:
             raise ValueError("reference must have at least 2 samples")
         episodes, steps = np.repeat(np.arange(B), T), np.tile(np.arange(T), B)
         windows = torch.as_tensor(gather_windows(X, episodes, steps, self.model.context), dtype=torch.float32)
+        extras = {k: torch.as_tensor(v.reshape(B * T, -1), dtype=torch.float32) for k, v in self.model.extras(X).items()}
+        if self.generative:
+            generator = torch.Generator().manual_seed(self.seed if seed is None else seed)
+            z = torch.randn((B, T if fresh_noise else 1, 2), generator=generator)
+            options["noise"] = z.expand(B, T, 2).reshape(B * T, 2)
         with torch.inference_mode(), one_thread():
-            u = self.model.predict(windows, **options).numpy().astype(np.float64).reshape(B, T, 2)
+            u = self.model.predict(windows, **extras, **options).numpy().astype(np.float64).reshape(B, T, 2)
         return u[0] if unbatched else u
 
 

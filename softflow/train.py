@@ -15,12 +15,18 @@ from tqdm import tqdm
 from .data import Dataset
 from .models.baselines import InverseLSTM, InverseMLP, InverseTransformer
 from .models.common import one_thread
+from .models.flow import RectifiedFlow
+from .models.forward import ForwardModel
 from .profiles import TrainConfig
 
-MODELS = {  # name -> (class, keyword arguments); the RF family registers itself in models.flow
+MODELS = {  # name -> (class, keyword arguments)
     "mlp": (InverseMLP, {}),
     "lstm": (InverseLSTM, {"context": 10}),
     "transformer": (InverseTransformer, {"context": 10}),
+    "forward": (ForwardModel, {}),
+    "rf": (RectifiedFlow, {}),
+    "rf-physical": (RectifiedFlow, {"prior": "vertical"}),
+    "rf-fwd": (RectifiedFlow, {"consistency": 1.0}),
 }
 
 
@@ -39,10 +45,12 @@ def gather_windows(states: np.ndarray, episodes, steps, context: int) -> np.ndar
 
 
 class Sampler:
-    """Random (episode, t) training pairs of a split, gathered into tensors per batch."""
+    """Random (episode, t) training pairs of a split, gathered into tensors per batch:
+    (window, u, extras) with extras {name: (B, k)} from per-step arrays (E, T, k)."""
 
-    def __init__(self, dataset: Dataset, episodes, context: int, rng: np.random.Generator):
+    def __init__(self, dataset: Dataset, episodes, context: int, rng: np.random.Generator, extras: dict | None = None):
         self.states, self.u, self.episodes, self.context, self.rng = dataset.states, dataset.u, np.asarray(episodes), context, rng
+        self.extras = extras or {}
         self.n_steps = dataset.u.shape[1]
 
     def batch(self, size: int):
@@ -52,7 +60,9 @@ class Sampler:
 
     def tensors(self, episodes, steps):
         window = gather_windows(self.states, episodes, steps, self.context)
-        return torch.as_tensor(window, dtype=torch.float32), torch.as_tensor(self.u[episodes, steps], dtype=torch.float32)
+        extras = {k: torch.as_tensor(v[episodes, steps], dtype=torch.float32) for k, v in self.extras.items()}
+        return (torch.as_tensor(window, dtype=torch.float32), torch.as_tensor(self.u[episodes, steps], dtype=torch.float32),
+                extras)
 
     def fixed(self, n: int, seed: int):
         """A fixed, seeded set of n pairs (for validation)."""
@@ -103,10 +113,12 @@ def model_from_checkpoint(checkpoint: dict, path: Path | str = "<memory>") -> to
     return model.eval()
 
 
-def _evaluate(model, window, u, batch: int = 4096) -> float:
-    with torch.no_grad():
-        losses = [model.compute_loss(window[i:i + batch], u[i:i + batch]).item() * len(window[i:i + batch])
-                  for i in range(0, len(window), batch)]
+def _evaluate(model, window, u, extras, batch: int = 4096) -> float:
+    """Validation loss; seeded, so a flow's random tau and z are the same every epoch."""
+    with torch.no_grad(), torch.random.fork_rng():
+        torch.manual_seed(0)
+        losses = [model.compute_loss(window[i:i + batch], u[i:i + batch], **{k: v[i:i + batch] for k, v in extras.items()})
+                  .item() * len(window[i:i + batch]) for i in range(0, len(window), batch)]
     return float(sum(losses) / len(window))
 
 
@@ -132,13 +144,17 @@ def _train(name: str, dataset: Dataset, config: TrainConfig, path: Path, model_k
 
     torch.manual_seed(config.seed)
     model = build_model(name, **model_kwargs)
-    model.set_normalizer(torch.as_tensor(dataset.states[dataset.train], dtype=torch.float32),
-                         torch.as_tensor(dataset.u[dataset.train], dtype=torch.float32))
+    extras = model.extras(dataset.states)
+    as_tensor = lambda a: torch.as_tensor(a[dataset.train], dtype=torch.float32)  # noqa: E731
+    model.set_normalizer(as_tensor(dataset.states), as_tensor(dataset.u), **{k: as_tensor(v) for k, v in extras.items()})
+    model.prepare(dataset, config, path)
     ema = copy.deepcopy(model) if config.ema_decay else None
-    optimizer = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
+    optimizer = torch.optim.AdamW([p for p in model.parameters() if p.requires_grad], lr=config.lr,
+                                  weight_decay=config.weight_decay)
     rng = np.random.default_rng(config.seed)
-    sampler = Sampler(dataset, dataset.train, model.context, rng)
-    val_window, val_u = Sampler(dataset, dataset.val, model.context, rng).fixed(config.val_samples, config.seed + 1)
+    sampler = Sampler(dataset, dataset.train, model.context, rng, extras)
+    val_window, val_u, val_extras = Sampler(dataset, dataset.val, model.context, rng, extras).fixed(config.val_samples,
+                                                                                                    config.seed + 1)
     state = dict(epoch=0, step=0, best_val=float("inf"), best_model=None, stale=0, history=[], wall_seconds=0.0)
 
     latest = path.with_name(path.name + ".latest")
@@ -160,7 +176,8 @@ def _train(name: str, dataset: Dataset, config: TrainConfig, path: Path, model_k
         for _ in range(config.steps_per_epoch):
             for group in optimizer.param_groups:
                 group["lr"] = get_lr(state["step"], config)
-            loss = model.compute_loss(*sampler.batch(config.batch_size))
+            window, u, batch_extras = sampler.batch(config.batch_size)
+            loss = model.compute_loss(window, u, **batch_extras)
             optimizer.zero_grad(set_to_none=True)
             loss.backward()
             optimizer.step()
@@ -168,7 +185,7 @@ def _train(name: str, dataset: Dataset, config: TrainConfig, path: Path, model_k
                 _update_ema(ema, model, state["step"], config.ema_decay)
             state["step"] += 1
         evaluated = (ema if ema is not None else model).eval()
-        val = _evaluate(evaluated, val_window, val_u)
+        val = _evaluate(evaluated, val_window, val_u, val_extras)
         state["epoch"] += 1
         state["history"].append(dict(epoch=state["epoch"], train_loss=loss.item(), val_loss=val))
         if val < state["best_val"]:

@@ -35,7 +35,7 @@ def test_windows_repeat_the_rest_state_before_the_start():
 @pytest.mark.parametrize("name", ["mlp", "lstm", "transformer"])
 def test_training_beats_the_mean_on_held_out_episodes(name, dataset, tmp_path):
     model, checkpoint = train.train(name, dataset, QUICK, tmp_path / f"{name}.pt", progress=False)
-    window, u = train.Sampler(dataset, dataset.test, model.context, np.random.default_rng(0)).fixed(3000, 0)
+    window, u, _ = train.Sampler(dataset, dataset.test, model.context, np.random.default_rng(0)).fixed(3000, 0)
     with torch.no_grad():
         held_out_mse = torch.mean((model.predict(window) - u) ** 2).item()
     variance = torch.var(u, dim=0).sum().item() / 2
@@ -48,11 +48,11 @@ def test_an_interrupted_run_resumes_to_the_same_weights(dataset, tmp_path, monke
     calls = {"n": 0}
     real_loss = train.InverseMLP.compute_loss
 
-    def interrupt_in_epoch_two(self, *args):
+    def interrupt_in_epoch_two(self, *args, **kwargs):
         calls["n"] += 1
         if calls["n"] == QUICK.steps_per_epoch + 10:
             raise KeyboardInterrupt
-        return real_loss(self, *args)
+        return real_loss(self, *args, **kwargs)
 
     monkeypatch.setattr(train.InverseMLP, "compute_loss", interrupt_in_epoch_two)
     with pytest.raises(KeyboardInterrupt):

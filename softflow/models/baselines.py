@@ -9,7 +9,7 @@ from .common import InverseModel, mlp
 
 
 class _Regression(InverseModel):
-    def compute_loss(self, window, u):
+    def compute_loss(self, window, u, **extras):
         return torch.mean((self.forward(window) - self.action_norm.normalize(u)) ** 2)
 
     def predict(self, window, **kwargs):

@@ -56,6 +56,14 @@ class InverseModel(nn.Module):
         super().__init__()
         self.state_norm, self.delta_norm, self.action_norm = Normalizer(6), Normalizer(6), Normalizer(2)
 
+    def extras(self, states) -> dict:
+        """Per-step inputs beyond the state window, computed from states (B, T+1, 6) as
+        {name: (B, T, k) array}; passed to set_normalizer, compute_loss and predict."""
+        return {}
+
+    def prepare(self, dataset, config, path):
+        """Called once before training (after set_normalizer); e.g. to fit a surrogate."""
+
     def set_normalizer(self, states: torch.Tensor, u: torch.Tensor):
         """Fit the normalisers on training episodes: states (E, T+1, 6), u (E, T, 2)."""
         self.state_norm.fit(states[:, :-1])

@@ -1,0 +1,105 @@
+"""Conditional rectified flow for inverse dynamics (paper Sec. III): RF, RF-Physical, RF-FWD.
+
+A velocity field v_theta(xi_tau, tau, c) transports noise z ~ N(0, I) to the normalised
+actuation along the straight path xi_tau = (1 - tau) z + tau xi, trained with
+||v - (xi - z)||^2 and integrated with N Euler steps at inference.
+  RF:          xi = u,             c = (x_t, x_{t+1})
+  RF-Physical: xi = u - u_phys,    c = (x_t, x_{t+1}, u_phys), u_phys = inverse statics of p_{t+1}
+  RF-FWD:      RF + lambda ||f_phi(x_t, u_hat) - x_{t+1}||^2 with a frozen forward surrogate f_phi.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from .common import InverseModel, Normalizer, mlp
+from .forward import ForwardModel
+
+
+class RectifiedFlow(InverseModel):
+    """The velocity field and its sampler. ``prior``: gravity configuration of the static
+    prior (RF-Physical), or None. ``consistency``: lambda_cons of RF-FWD (0 for RF)."""
+
+    def __init__(self, hidden: int = 256, layers: int = 3, steps: int = 4, tau_sampling: str = "uniform",
+                 prior: str | None = None, consistency: float = 0.0):
+        super().__init__()
+        if tau_sampling not in ("uniform", "logit-normal"):
+            raise ValueError(f"tau_sampling must be 'uniform' or 'logit-normal'; got {tau_sampling!r}")
+        self.steps, self.tau_sampling, self.prior, self.consistency = steps, tau_sampling, prior, consistency
+        self.net = mlp([2 + 1 + 12 + (2 if prior else 0)] + [hidden] * layers + [2])
+        if prior:
+            self.prior_norm, self.residual_norm = Normalizer(2), Normalizer(2)
+        if consistency:
+            self.forward_model = ForwardModel().requires_grad_(False)
+
+    # -- data-side hooks used by the training loop and the controller
+    def extras(self, states: np.ndarray) -> dict:
+        """Per-step inputs beyond the state window: the static prior u_phys(p_{t+1}) (B, T, 2)."""
+        if not self.prior:
+            return {}
+        from ..robots import SIM_ROBOT
+        from ..sim import Simulator
+        from ..statics import StaticTable
+
+        return {"prior": StaticTable(Simulator(SIM_ROBOT, gravity=self.prior)).inverse(states[:, 1:, :3])}
+
+    def set_normalizer(self, states, u, prior=None):
+        super().set_normalizer(states, u)
+        if self.prior:
+            self.prior_norm.fit(prior)
+            self.residual_norm.fit(u - prior)
+
+    def prepare(self, dataset, config, path: Path):
+        """RF-FWD: train (or reuse) the forward surrogate beside this model's checkpoint, freeze it."""
+        if self.consistency:
+            from ..train import train
+
+            surrogate, _ = train("forward", dataset, config, path.with_name("forward.pt"), progress=False)
+            self.forward_model.load_state_dict(surrogate.state_dict())
+
+    # -- the flow
+    def _target_norm(self):
+        return self.residual_norm if self.prior else self.action_norm
+
+    def _condition(self, window, prior):
+        c = self.features(window[:, -2:])[:, 0]
+        return torch.cat([c, self.prior_norm.normalize(prior)], -1) if self.prior else c
+
+    def velocity(self, xi, tau, condition):
+        return self.net(torch.cat([xi, tau[:, None], condition], -1))
+
+    def _sample_tau(self, n):
+        if self.tau_sampling == "uniform":
+            return torch.rand(n)
+        return torch.sigmoid(torch.randn(n))  # logit-normal(0, 1): more weight mid-path
+
+    def compute_loss(self, window, u, prior=None):
+        condition = self._condition(window, prior)
+        xi = self._target_norm().normalize(u - prior if self.prior else u)
+        z = torch.randn_like(xi)
+        tau = self._sample_tau(len(xi))
+        xi_tau = (1 - tau[:, None]) * z + tau[:, None] * xi
+        v = self.velocity(xi_tau, tau, condition)
+        loss = torch.mean((v - (xi - z)) ** 2)
+        if self.consistency:
+            # one-step estimate of the endpoint from xi_tau along v (differentiable, cheap)
+            u_hat = self._target_norm().unnormalize(xi_tau + (1 - tau[:, None]) * v)
+            if self.prior:
+                u_hat = u_hat + prior
+            x, x_next = window[:, -2], window[:, -1]
+            predicted = self.forward_model.increment(x, u_hat)
+            loss = loss + self.consistency * torch.mean((predicted - self.delta_norm.normalize(x_next - x)) ** 2)
+        return loss
+
+    def predict(self, window, prior=None, noise=None, steps: int | None = None):
+        """u (B, 2): Euler integration of the flow from ``noise`` (default: fresh N(0, I))."""
+        condition = self._condition(window, prior)
+        xi = torch.randn(len(window), 2) if noise is None else noise
+        n = steps or self.steps
+        for k in range(n):
+            tau = torch.full((len(xi),), k / n)
+            xi = xi + self.velocity(xi, tau, condition) / n
+        u = self._target_norm().unnormalize(xi)
+        return u + prior if self.prior else u

@@ -1,0 +1,102 @@
+"""The RF family: generative transport, the static prior, the consistency loss, sampling."""
+import numpy as np
+import pytest
+import torch
+
+from softflow import control, data, train
+from softflow.models.baselines import InverseMLP
+from softflow.models.common import one_thread
+from softflow.models.flow import RectifiedFlow
+from softflow.profiles import Profile, TrainConfig
+from softflow.robots import SIM_ROBOT
+from softflow.sim import Simulator
+from softflow.statics import StaticTable
+
+SMALL = Profile("small", n_episodes=24, episode_seconds=2.0)
+QUICK = TrainConfig(epochs=3, steps_per_epoch=100, batch_size=256, warmup_steps=20, val_samples=2000, patience=3)
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    return data.load_dataset(SMALL, data_dir=tmp_path_factory.mktemp("data"), progress=False)
+
+
+def fit(model, window, u, steps=1500):
+    model.set_normalizer(window, u[None])
+    optimizer = torch.optim.Adam(model.parameters(), lr=2e-3)
+    for _ in range(steps):
+        loss = model.compute_loss(window, u)
+        optimizer.zero_grad()
+        loss.backward()
+        optimizer.step()
+    return model
+
+
+def test_rf_keeps_both_modes_where_regression_averages_them():
+    """Two actuations realise the same transition (u = +-1): the flow samples both,
+    the MSE regression predicts their mean, which realises neither."""
+    torch.manual_seed(0)
+    window = torch.randn(512, 2, 6).repeat(2, 1, 1)
+    u = torch.cat([torch.ones(512, 2), -torch.ones(512, 2)])
+    with one_thread():
+        flow = fit(RectifiedFlow(hidden=64, layers=2, steps=8), window, u)
+        regression = fit(InverseMLP(hidden=64, layers=2), window, u)
+    with torch.no_grad():
+        sampled = flow.predict(window[:512])
+        averaged = regression.predict(window[:512])
+    assert averaged.abs().mean() < 0.2
+    assert (sampled.abs() > 0.7).float().mean() > 0.9  # near +-1, not at the mean 0
+    assert 0.3 < (sampled[:, 0] > 0).float().mean() < 0.7  # both modes, in proportion
+
+
+def test_rf_learns_held_out_transitions(dataset, tmp_path):
+    model, _ = train.train("rf", dataset, QUICK, tmp_path / "rf.pt", progress=False)
+    window, u, _ = train.Sampler(dataset, dataset.test, 1, np.random.default_rng(0)).fixed(3000, 0)
+    with torch.no_grad():
+        mse = torch.mean((model.predict(window, noise=torch.zeros(len(window), 2)) - u) ** 2).item()
+    assert mse < 0.5 * torch.var(u, dim=0).mean().item()
+
+
+def test_rf_fwd_trains_its_forward_surrogate_and_freezes_it(dataset, tmp_path):
+    model, _ = train.train("rf-fwd", dataset, QUICK, tmp_path / "rf-fwd.pt", progress=False)
+    surrogate = train.model_from_checkpoint(train.load_checkpoint(tmp_path / "forward.pt"))
+    for a, b in zip(model.forward_model.state_dict().values(), surrogate.state_dict().values()):
+        torch.testing.assert_close(a, b)  # unchanged by the RF-FWD training
+    window, u, _ = train.Sampler(dataset, dataset.test, 1, np.random.default_rng(0)).fixed(2000, 0)
+    with torch.no_grad():
+        predicted = surrogate.predict_next(window[:, 0], u)
+    step = window[:, 1] - window[:, 0]
+    assert torch.mean((predicted - window[:, 1]) ** 2) < 0.5 * torch.mean(step**2)  # beats "no change" by 2x
+
+
+@pytest.fixture(scope="module")
+def table():
+    return StaticTable(Simulator(SIM_ROBOT, gravity="vertical"))
+
+
+def test_static_table_inverse_matches_inverse_statics(table):
+    sim = Simulator(SIM_ROBOT, gravity="vertical")
+    u = np.random.default_rng(0).uniform(-4, 4, (20, 2))
+    p = sim.static_tip(u)
+    np.testing.assert_allclose(table.inverse(p), u, atol=1e-3)
+    off_surface = p + np.random.default_rng(1).normal(0, 0.01, p.shape)  # dynamic states are off the surface
+    np.testing.assert_allclose(table.inverse(off_surface), sim.inverse_static(off_surface), atol=1e-3)
+
+
+def test_rf_physical_adds_its_prior(table):
+    model = RectifiedFlow(prior="vertical")
+    states = np.zeros((1, 3, 6))
+    states[0, :, 0] = 0.4
+    states[0, 2, 1] = 0.05
+    prior = model.extras(states)["prior"]
+    assert prior.shape == (1, 2, 2)
+    np.testing.assert_allclose(prior[0, 1], table.inverse(states[0, 2, :3]), atol=1e-9)
+
+
+def test_plans_are_reproducible_and_noise_can_be_fresh(dataset, tmp_path):
+    model, _ = train.train("rf", dataset, QUICK, tmp_path / "rf.pt", progress=False)
+    controller = control.Controller(model, "rf", seed=3)
+    reference = dataset.states[0]
+    np.testing.assert_array_equal(controller.plan(reference), controller.plan(reference))
+    assert not np.allclose(controller.plan(reference), controller.plan(reference, seed=4))
+    assert not np.allclose(controller.plan(reference), controller.plan(reference, fresh_noise=True))
