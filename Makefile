@@ -31,7 +31,15 @@ reproduce: $(STAMP)
 		$(VENV)/bin/papermill --cwd notebooks -p profile $(PROFILE) "$$nb" "build/notebooks/$(PROFILE)/$$(basename $$nb)" || exit 1; \
 	done
 
-bench: $(STAMP)
+ELASTICA := .venv-elastica/.installed
+$(ELASTICA): benchmarks/requirements-elastica.txt
+	rm -rf .venv-elastica
+	$(PYTHON_BASE) -m venv .venv-elastica
+	.venv-elastica/bin/pip install --quiet -r benchmarks/requirements-elastica.txt
+	.venv-elastica/bin/pip install --quiet --no-deps --no-build-isolation -e .
+	touch $(ELASTICA)
+
+bench: $(STAMP) $(ELASTICA)  # PyElastica is a benchmark-only dependency, in its own venv
 	$(PY) benchmarks/bench_simulator.py
 
 lab: $(STAMP)
@@ -41,4 +49,4 @@ lock:  # refresh environment.lock from the current .venv (after adding a depende
 	{ head -2 environment.lock; $(PY) -m pip freeze --exclude-editable; } > environment.lock.new && mv environment.lock.new environment.lock
 
 clean:
-	rm -rf build $(VENV) .pytest_cache
+	rm -rf build $(VENV) .venv-elastica .pytest_cache

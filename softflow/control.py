@@ -77,11 +77,11 @@ def expected_data_key(profile: str) -> str:
     return dataset_path(get_profile(profile)).stem
 
 
-def evaluate(controller, references, sim: Simulator, u_limit: float = U_MAX):
-    """Plan every reference, clip to the actuator range, run all plans open loop from rest
-    in one batched rollout, and score them. Returns a DataFrame (one row per reference)
-    and {name: dict(u, states)} with the plans and the achieved trajectories."""
-    plans = [np.clip(controller.plan(r.states), -u_limit, u_limit) for r in references]
+def evaluate(controller, references, sim: Simulator, u_limit: float = U_MAX, **plan_options):
+    """Plan every reference (``plan_options`` go to ``plan``, e.g. steps=N), clip to the
+    actuator range, run all plans open loop from rest in one batched rollout, and score
+    them. Returns a DataFrame (one row per reference) and {name: dict(u, states)}."""
+    plans = [np.clip(controller.plan(r.states, **plan_options), -u_limit, u_limit) for r in references]
     longest = max(len(u) for u in plans)
     padded = np.stack([np.concatenate([u, np.repeat(u[-1:], longest - len(u), 0)]) for u in plans])  # hold the last u
     achieved = sim.rollout(padded)

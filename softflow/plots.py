@@ -155,3 +155,15 @@ def inputs_grid(runs: dict, references: dict, names, dt: float):
         axes[1, col].set_xlabel("t [s]")
     axes[0, -1].legend(fontsize=7)
     return fig
+
+
+def euler_sweep(steps, rmse_shape, rmse_random, latency_ms):
+    """Tracking RMSE and per-step planning latency against the number of Euler steps."""
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(9, 3.4))
+    ax.plot(steps, rmse_shape, "o-", label="shapes")
+    ax.plot(steps, rmse_random, "s-", label="random")
+    ax.set(xscale="log", xlabel="Euler steps N", ylabel="RMSE [mm]")
+    ax.legend()
+    ax2.plot(steps, latency_ms, "o-", color="C2")
+    ax2.set(xscale="log", xlabel="Euler steps N", ylabel="latency per control step [ms]")
+    return fig

@@ -148,6 +148,7 @@ def _train(name: str, dataset: Dataset, config: TrainConfig, path: Path, model_k
     as_tensor = lambda a: torch.as_tensor(a[dataset.train], dtype=torch.float32)  # noqa: E731
     model.set_normalizer(as_tensor(dataset.states), as_tensor(dataset.u), **{k: as_tensor(v) for k, v in extras.items()})
     model.prepare(dataset, config, path)
+    torch.manual_seed(config.seed + 1)  # the same stream whether prepare trained something or read a cache
     ema = copy.deepcopy(model) if config.ema_decay else None
     optimizer = torch.optim.AdamW([p for p in model.parameters() if p.requires_grad], lr=config.lr,
                                   weight_decay=config.weight_decay)
