@@ -7,6 +7,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.lock-installed
 PROFILE ?= paper
+BENCH_PROFILE ?= ci
 NOTEBOOKS := $(sort $(wildcard notebooks/[0-9]*.ipynb))
 
 .PHONY: venv test reproduce bench lab clean lock
@@ -36,11 +37,11 @@ $(ELASTICA): benchmarks/requirements-elastica.txt
 	rm -rf .venv-elastica
 	$(PYTHON_BASE) -m venv .venv-elastica
 	.venv-elastica/bin/pip install --quiet -r benchmarks/requirements-elastica.txt
-	.venv-elastica/bin/pip install --quiet --no-deps --no-build-isolation -e .
 	touch $(ELASTICA)
 
 bench: $(STAMP) $(ELASTICA)  # PyElastica is a benchmark-only dependency, in its own venv
 	$(PY) benchmarks/bench_simulator.py
+	$(PY) benchmarks/bench_planning.py --profile $(BENCH_PROFILE)
 
 lab: $(STAMP)
 	$(VENV)/bin/jupyter lab notebooks

@@ -39,7 +39,7 @@ def run_pyelastica(u: np.ndarray) -> dict:
     """Tip trajectory and wall time of PyElastica for one episode, in its own interpreter."""
     with tempfile.TemporaryDirectory() as tmp:
         np.save(Path(tmp) / "u.npy", u)
-        script = (f"import sys, numpy as np; sys.path.insert(0, {str(HERE)!r}); import pyelastica_rod;"
+        script = (f"import sys, numpy as np; sys.path[:0] = [{str(HERE)!r}, {str(HERE.parent)!r}]; import pyelastica_rod;"
                   f"from softflow.robots import SIM_ROBOT;"
                   f"r = pyelastica_rod.simulate(SIM_ROBOT, np.load({str(Path(tmp) / 'u.npy')!r}));"
                   f"np.save({str(Path(tmp) / 'tip.npy')!r}, r['tip']); print(r['wall_seconds'])")

@@ -17,8 +17,8 @@ REPO = Path(__file__).resolve().parent.parent
 class TrainConfig:
     """Optimisation budget of one model (shared by every model of a profile: a fair budget)."""
 
-    epochs: int = 40
-    steps_per_epoch: int = 1000
+    epochs: int = 30
+    steps_per_epoch: int = 500
     batch_size: int = 512
     lr: float = 1e-3
     weight_decay: float = 1e-4

@@ -100,3 +100,29 @@ def test_plans_are_reproducible_and_noise_can_be_fresh(dataset, tmp_path):
     np.testing.assert_array_equal(controller.plan(reference), controller.plan(reference))
     assert not np.allclose(controller.plan(reference), controller.plan(reference, seed=4))
     assert not np.allclose(controller.plan(reference), controller.plan(reference, fresh_noise=True))
+
+
+@pytest.mark.parametrize("name", ["rf", "rf-fwd"])
+def test_lean_numpy_sampler_gives_the_torch_models_u(name, dataset, tmp_path):
+    from softflow.models.flow import LeanFlow
+
+    model, _ = train.train(name, dataset, QUICK, tmp_path / f"{name}.pt", progress=False)
+    window, _, _ = train.Sampler(dataset, dataset.test, 1, np.random.default_rng(0)).fixed(500, 0)
+    z = torch.randn(500, 2)
+    with torch.no_grad():
+        expected = model.predict(window, noise=z, steps=6).numpy()
+    lean = LeanFlow(model).predict(window.double().numpy(), z.double().numpy(), steps=6)
+    np.testing.assert_allclose(lean, expected, atol=1e-5)
+
+
+def test_lean_sampler_handles_the_physical_prior():
+    from softflow.models.flow import LeanFlow
+
+    torch.manual_seed(0)
+    model = RectifiedFlow(prior="vertical", hidden=32, layers=2).eval()
+    window, prior, z = torch.randn(50, 2, 6), torch.randn(50, 2), torch.randn(50, 2)
+    model.set_normalizer(torch.randn(3, 20, 6), torch.randn(3, 19, 2), prior=torch.randn(3, 19, 2))
+    with torch.no_grad():
+        expected = model.predict(window, prior=prior, noise=z).numpy()
+    lean = LeanFlow(model).predict(window.double().numpy(), z.double().numpy(), prior=prior.double().numpy())
+    np.testing.assert_allclose(lean, expected, atol=1e-5)
