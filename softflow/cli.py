@@ -16,10 +16,12 @@ def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m softflow", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("command", choices=["data", "train"])
-    parser.add_argument("models", nargs="*", choices=sorted(train.MODELS), metavar="model",
-                        help=f"models to train: {', '.join(sorted(train.MODELS))}")
+    parser.add_argument("models", nargs="*", metavar="model", help=f"models to train: {', '.join(sorted(train.MODELS))}")
     parser.add_argument("--profile", default="paper", choices=sorted(PROFILES))
-    args = parser.parse_args(argv)
+    args = parser.parse_intermixed_args(argv)
+    unknown = sorted(set(args.models) - set(train.MODELS))
+    if unknown:
+        parser.error(f"unknown model(s) {unknown}; choose from {sorted(train.MODELS)}")
     profile = get_profile(args.profile)
     start = time.perf_counter()
     dataset = data.load_dataset(profile)
