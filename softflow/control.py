@@ -31,13 +31,15 @@ class Controller:
 
     Generative models draw their noise z from ``seed``: by default one z per trajectory,
     used at every step, so a plan is reproducible and temporally coherent;
-    ``plan(..., fresh_noise=True)`` draws a new z for every step instead."""
+    ``plan(..., fresh_noise=True)`` draws a new z for every step instead, and
+    ``plan(..., zero_noise=True)`` starts every step from z = 0, the centre of the noise."""
 
     def __init__(self, model: torch.nn.Module, name: str, seed: int = 0):
         self.model, self.name, self.seed = model.eval(), name, seed
         self.generative = isinstance(model, RectifiedFlow)
 
-    def plan(self, reference, *, fresh_noise: bool = False, seed: int | None = None, **options) -> np.ndarray:
+    def plan(self, reference, *, fresh_noise: bool = False, zero_noise: bool = False, seed: int | None = None,
+             **options) -> np.ndarray:
         """(T+1, 6) or (B, T+1, 6) reference -> (T, 2) or (B, T, 2) actuation (N), every
         step predicted in one batched call (the plan depends on the reference only)."""
         X, unbatched = as_real_array(reference, "reference", (None, None, 6), allow_unbatched=True)
@@ -50,6 +52,7 @@ class Controller:
         if self.generative:
             generator = torch.Generator().manual_seed(self.seed if seed is None else seed)
             z = torch.randn((B, T if fresh_noise else 1, 2), generator=generator)
+            z = torch.zeros_like(z) if zero_noise else z
             options["noise"] = z.expand(B, T, 2).reshape(B * T, 2)
         with torch.inference_mode(), one_thread():
             u = self.model.predict(windows, **extras, **options).numpy().astype(np.float64).reshape(B, T, 2)

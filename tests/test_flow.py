@@ -100,6 +100,10 @@ def test_plans_are_reproducible_and_noise_can_be_fresh(dataset, tmp_path):
     np.testing.assert_array_equal(controller.plan(reference), controller.plan(reference))
     assert not np.allclose(controller.plan(reference), controller.plan(reference, seed=4))
     assert not np.allclose(controller.plan(reference), controller.plan(reference, fresh_noise=True))
+    window = torch.as_tensor(train.gather_windows(reference[None], np.zeros(5, int), np.arange(5), 1), dtype=torch.float32)
+    with torch.no_grad():
+        centre = model.predict(window, noise=torch.zeros(5, 2)).numpy()
+    np.testing.assert_allclose(controller.plan(reference, zero_noise=True)[:5], centre, atol=1e-6)
 
 
 @pytest.mark.parametrize("name", ["rf", "rf-fwd"])
