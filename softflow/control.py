@@ -10,11 +10,11 @@ import pandas as pd
 import torch
 
 from .checks import as_real_array
-from .data import DT, U_MAX
+from .data import DT, U_MAX, dataset_path
 from .models.common import one_thread
 from .models.flow import RectifiedFlow
 from .metrics import actuation_mae, input_energy, phase_lag, tracking_rmse
-from .profiles import REPO
+from .profiles import REPO, get_profile
 from .sim import Simulator
 from .train import gather_windows, load_checkpoint, model_from_checkpoint
 
@@ -74,9 +74,6 @@ def load_controller(name: str, profile: str = "paper") -> Controller:
 
 
 def expected_data_key(profile: str) -> str:
-    from .data import dataset_path
-    from .profiles import get_profile
-
     return dataset_path(get_profile(profile)).stem
 
 
