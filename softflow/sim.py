@@ -303,16 +303,13 @@ class Simulator:
         Gauss-Newton through the equilibrium.
         """
         p, _ = as_real_array(p, "p", (None, 3))
-        return self._fit_static(p, [0, 1, 2], self.arc_actuation(p), tol, max_iter)[0]
-
-    def arc_actuation(self, p) -> np.ndarray:
-        """Actuation (B, 2) of the gravity-free circular arc whose tip chord points at p (B, 3):
-        the closed-form start of every inverse-statics iteration."""
         r = self.robot
-        bend = 2 * np.arctan2(np.hypot(p[:, 1], p[:, 2]), p[:, 0])  # arc angle
+        lateral = np.hypot(p[:, 1], p[:, 2])
+        bend = 2 * np.arctan2(lateral, p[:, 0])  # arc angle whose chord points at p
         heading = np.arctan2(p[:, 2], p[:, 1])
         magnitude = bend / r.length * r.bending_stiffness / r.cable_radius
-        return magnitude[:, None] * np.stack([np.cos(heading), np.sin(heading)], -1)
+        u = magnitude[:, None] * np.stack([np.cos(heading), np.sin(heading)], -1)
+        return self._fit_static(p, [0, 1, 2], u, tol, max_iter)[0]
 
     def static_lift(self, yz, u_max: float = 4.0):
         """The equilibrium whose tip has lateral position yz (B, 2): tip p (B, 3),

@@ -54,7 +54,12 @@ class StaticTable:
         if np.shape(p)[-1:] != (3,):
             raise ValueError(f"p must have shape (..., 3); got {np.shape(p)}")
         p, _ = as_real_array(np.reshape(p, (-1, 3)), "p", (None, 3))
-        u = np.clip(self.sim.arc_actuation(p), -self.u_range, self.u_range)
+        r = self.sim.robot
+        lateral = np.hypot(p[:, 1], p[:, 2])
+        bend = 2 * np.arctan2(lateral, p[:, 0])  # gravity-free arc through p: the start
+        heading = np.arctan2(p[:, 2], p[:, 1])
+        u = (bend / r.length * r.bending_stiffness / r.cable_radius)[:, None] * np.stack([np.cos(heading), np.sin(heading)], -1)
+        u = np.clip(u, -self.u_range, self.u_range)
         for _ in range(iterations):
             tip, J = self.tip(u)
             JT = J.transpose(0, 2, 1)
