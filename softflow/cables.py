@@ -39,6 +39,12 @@ def cable_tensions(u, robot: Robot, pretension: float = 0.0) -> np.ndarray:
     return tensions
 
 
+def cable_actuation(tensions, robot: Robot) -> np.ndarray:
+    """The differential actuation u (B, 2) that cable tensions (B, C) exert: sum_c T_c (cos a_c, sin a_c)."""
+    tensions, _ = as_real_array(tensions, "tensions", (None, robot.n_cables))
+    return tensions @ cable_directions(robot)
+
+
 def cable_displacements(bend_angles, robot: Robot) -> np.ndarray:
     """Length change (m, negative = shortened) of each cable for a rod shape: (B, 2) -> (B, C).
 

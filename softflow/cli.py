@@ -2,6 +2,7 @@
 
   python -m softflow data  --profile paper              generate (or verify) the dataset
   python -m softflow train --profile paper mlp rf-fwd   train models into their checkpoints
+  python -m softflow train --robot hw --gravity horizontal rf-fwd   a hardware-twin model
 """
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ import time
 
 from . import control, data, train
 from .profiles import PROFILES, get_profile
+from .robots import ROBOTS
 
 
 def main(argv=None):
@@ -18,17 +20,21 @@ def main(argv=None):
     parser.add_argument("command", choices=["data", "train"])
     parser.add_argument("models", nargs="*", metavar="model", help=f"models to train: {', '.join(sorted(train.MODELS))}")
     parser.add_argument("--profile", default="paper", choices=sorted(PROFILES))
+    parser.add_argument("--robot", default="sim", choices=sorted(ROBOTS))
+    parser.add_argument("--gravity", default="vertical", choices=["vertical", "horizontal"])
     args = parser.parse_intermixed_args(argv)
     unknown = sorted(set(args.models) - set(train.MODELS))
     if unknown:
         parser.error(f"unknown model(s) {unknown}; choose from {sorted(train.MODELS)}")
     profile = get_profile(args.profile)
     start = time.perf_counter()
-    dataset = data.load_dataset(profile)
+    robot = ROBOTS[args.robot]
+    dataset = data.load_dataset(profile, robot, args.gravity)
     print(f"dataset {dataset.key}: {dataset.u.shape[0]} episodes ({time.perf_counter() - start:.0f} s)")
     if args.command == "train":
         for name in args.models:
-            _, checkpoint = train.train(name, dataset, profile.train, control.checkpoint_path(name, profile.name))
+            _, checkpoint = train.train(name, dataset, profile.train_config(name),
+                                        control.checkpoint_path(name, profile.name, robot, args.gravity))
             print(f"{name}: {checkpoint['epochs_run']} epochs, best validation loss {checkpoint['best_val']:.4f}, "
                   f"{checkpoint['wall_seconds'] / 60:.1f} min of training")
 

@@ -9,12 +9,13 @@ import numpy as np
 import pandas as pd
 import torch
 
-from .checks import as_real_array
+from .checks import as_real_array, check_choice
 from .data import DT, U_MAX, dataset_path
 from .models.common import one_thread
 from .models.flow import RectifiedFlow
 from .metrics import actuation_mae, input_energy, phase_lag, tracking_rmse
 from .profiles import REPO, get_profile
+from .robots import SIM_ROBOT, Robot
 from .sim import Simulator
 from .train import gather_windows, load_checkpoint, model_from_checkpoint
 
@@ -22,26 +23,54 @@ SHIPPED = REPO / "checkpoints"  # paper-profile weights, committed
 TRAINED = REPO / "data" / "checkpoints"  # anything else, rebuilt on demand
 
 
-def checkpoint_path(name: str, profile: str) -> Path:
-    return SHIPPED / f"{name}.pt" if profile == "paper" else TRAINED / profile / f"{name}.pt"
+def checkpoint_path(name: str, profile: str, robot: Robot = SIM_ROBOT, gravity: str = "vertical") -> Path:
+    """Where model ``name`` of a profile lives; models of another rod or configuration (the
+    hardware twins) in a sub-folder named after them."""
+    folder = SHIPPED if profile == "paper" else TRAINED / profile
+    if (robot, gravity) != (SIM_ROBOT, "vertical"):
+        folder = folder / f"{robot.name}-{gravity}"
+    return folder / f"{name}.pt"
+
+
+NOISE = ("zero", "seeded", "fresh")
 
 
 class Controller:
     """A trained inverse model used open loop: ``plan`` maps references to actuation.
 
-    Generative models draw their noise z from ``seed``: by default one z per trajectory,
-    used at every step, so a plan is reproducible and temporally coherent;
-    ``plan(..., fresh_noise=True)`` draws a new z for every step instead, and
-    ``plan(..., zero_noise=True)`` starts every step from z = 0, the centre of the noise."""
+    A generative model starts every step from noise z: by default z = 0, the centre of the
+    noise, which plans like the mean of many draws (notebook 05) and is deterministic;
+    ``noise="seeded"`` draws one z per trajectory from ``seed`` and uses it at every step,
+    ``noise="fresh"`` draws a new z for every step; ``sample`` gives independent draws."""
 
     def __init__(self, model: torch.nn.Module, name: str, seed: int = 0):
         self.model, self.name, self.seed = model.eval(), name, seed
         self.generative = isinstance(model, RectifiedFlow)
 
-    def plan(self, reference, *, fresh_noise: bool = False, zero_noise: bool = False, seed: int | None = None,
+    def plan(self, reference, *, noise: str = "zero", seed: int | None = None, n_samples: int = 1,
              **options) -> np.ndarray:
         """(T+1, 6) or (B, T+1, 6) reference -> (T, 2) or (B, T, 2) actuation (N), every
-        step predicted in one batched call (the plan depends on the reference only)."""
+        step predicted in one batched call (the plan depends on the reference only).
+        ``n_samples`` > 1 plans with the mean of that many noise draws: a Monte-Carlo
+        estimate of E[u | x_t, x_t+1], the plan of least squared actuation error."""
+        check_choice(noise, "noise", NOISE)
+        if n_samples == 1:
+            return self._plan(reference, noise, seed, options)
+        if noise == "zero":
+            raise ValueError("n_samples > 1 averages random draws: use noise='seeded' or 'fresh'")
+        return self.sample(reference, n_samples, noise=noise, seed=seed, **options).mean(0)
+
+    def sample(self, reference, n: int, *, noise: str = "seeded", seed: int | None = None, **options) -> np.ndarray:
+        """``n`` plans from independent noise draws: (n, T, 2) or (n, B, T, 2). Their spread is
+        the flow's own uncertainty about the actuation; a regression returns n equal plans."""
+        if not (isinstance(n, int) and n >= 1):
+            raise ValueError(f"n must be a positive integer; got {n!r}")
+        check_choice(noise, "noise", NOISE[1:])
+        X, unbatched = as_real_array(reference, "reference", (None, None, 6), allow_unbatched=True)
+        u = self._plan(np.tile(X, (n, 1, 1)), noise, seed, options).reshape(n, len(X), -1, 2)
+        return u[:, 0] if unbatched else u
+
+    def _plan(self, reference, noise, seed, options) -> np.ndarray:
         X, unbatched = as_real_array(reference, "reference", (None, None, 6), allow_unbatched=True)
         B, T = X.shape[0], X.shape[1] - 1
         if T < 1:
@@ -51,30 +80,30 @@ class Controller:
         extras = {k: torch.as_tensor(v.reshape(B * T, -1), dtype=torch.float32) for k, v in self.model.extras(X).items()}
         if self.generative:
             generator = torch.Generator().manual_seed(self.seed if seed is None else seed)
-            z = torch.randn((B, T if fresh_noise else 1, 2), generator=generator)
-            z = torch.zeros_like(z) if zero_noise else z
-            options["noise"] = z.expand(B, T, 2).reshape(B * T, 2)
+            z = torch.randn((B, T if noise == "fresh" else 1, 2), generator=generator)
+            options["noise"] = (torch.zeros_like(z) if noise == "zero" else z).expand(B, T, 2).reshape(B * T, 2)
         with torch.inference_mode(), one_thread():
             u = self.model.predict(windows, **extras, **options).numpy().astype(np.float64).reshape(B, T, 2)
         return u[0] if unbatched else u
 
 
-def load_controller(name: str, profile: str = "paper") -> Controller:
-    """The trained model ``name`` ("mlp", "lstm", "transformer", ...) of a profile; paper-profile
-    weights ship with the repository, so this works right after a clone."""
-    path = checkpoint_path(name, profile)
+def load_controller(name: str, profile: str = "paper", robot: Robot = SIM_ROBOT, gravity: str = "vertical") -> Controller:
+    """The trained model ``name`` ("mlp", "lstm", "transformer", ...) of a profile, for the rod
+    and configuration it was trained on; paper-profile weights ship with the repository, so
+    this works right after a clone."""
+    path = checkpoint_path(name, profile, robot, gravity)
     if not path.exists():
         raise ValueError(f"no trained {name!r} for profile {profile!r} at {path}; "
                          f"rebuild it with: PROFILE={profile} make reproduce  (or run the notebook that trains it)")
     checkpoint = load_checkpoint(path)
-    if "data_key" in checkpoint and checkpoint["data_key"] != expected_data_key(profile):
+    if "data_key" in checkpoint and checkpoint["data_key"] != expected_data_key(profile, robot, gravity):
         warnings.warn(f"{path} was trained on another dataset or simulator version; "
                       f"rebuild it with: PROFILE={profile} make reproduce", stacklevel=2)
     return Controller(model_from_checkpoint(checkpoint, path), name)
 
 
-def expected_data_key(profile: str) -> str:
-    return dataset_path(get_profile(profile)).stem
+def expected_data_key(profile: str, robot: Robot = SIM_ROBOT, gravity: str = "vertical") -> str:
+    return dataset_path(get_profile(profile), robot, gravity).stem
 
 
 def evaluate(controller, references, sim: Simulator, u_limit: float = U_MAX, **plan_options):

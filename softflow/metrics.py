@@ -8,15 +8,28 @@ import numpy as np
 from .checks import as_real_array
 
 
-def tracking_rmse(achieved, reference, mask=None) -> float:
-    """RMSE (m) of the 3D tip-position error over the masked samples: sqrt(mean ||p - p*||^2)."""
+def tracking_rmse(achieved, reference, mask=None, axes=(0, 1, 2)) -> float:
+    """RMSE (m) of the tip-position error over the masked samples: sqrt(mean ||p - p*||^2),
+    in 3D by default; ``axes=(1, 2)`` gives the y-z (tip-plane) error of the paper's burst test."""
     achieved, _ = as_real_array(achieved, "achieved", (None, 6))
     reference, _ = as_real_array(reference, "reference", (achieved.shape[0], 6))
     mask = np.ones(len(achieved), bool) if mask is None else np.asarray(mask, bool)
     if mask.shape != (len(achieved),) or not mask.any():
         raise ValueError(f"mask must be a boolean array of shape ({len(achieved)},) with at least one True")
-    error = achieved[mask, :3] - reference[mask, :3]
+    axes = list(axes)
+    if not set(axes) <= {0, 1, 2} or not axes:
+        raise ValueError(f"axes must be a non-empty subset of the position axes (0, 1, 2); got {axes}")
+    error = achieved[mask][:, axes] - reference[mask][:, axes]
     return float(np.sqrt(np.mean(np.sum(error**2, axis=1))))
+
+
+def peak_speed(states, mask=None) -> float:
+    """Largest tip speed ||v|| (m/s) over the masked samples of a (T+1, 6) trajectory."""
+    states, _ = as_real_array(states, "states", (None, 6))
+    mask = np.ones(len(states), bool) if mask is None else np.asarray(mask, bool)
+    if mask.shape != (len(states),) or not mask.any():
+        raise ValueError(f"mask must be a boolean array of shape ({len(states)},) with at least one True")
+    return float(np.linalg.norm(states[mask, 3:], axis=1).max())
 
 
 def phase_lag(achieved, reference, dt: float, max_lag: float = 0.5) -> float:

@@ -167,3 +167,103 @@ def euler_sweep(steps, rmse_shape, rmse_random, latency_ms):
     ax2.plot(steps, latency_ms, "o-", color="C2")
     ax2.set(xscale="log", xlabel="Euler steps N", ylabel="latency per control step [ms]")
     return fig
+
+
+def burst(reference, runs: dict, dt: float):
+    """The burst circle: y-z paths (reference dashed) and tip speed over time per model."""
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(10, 4), gridspec_kw={"width_ratios": [1, 1.6]})
+    m = reference.mask
+    t = np.arange(len(m)) * dt
+    ax.plot(reference.states[m, 1] * MM, reference.states[m, 2] * MM, "k--", lw=1.2, label="reference")
+    ax2.plot(t[m], np.linalg.norm(reference.states[m, 3:], axis=1), "k--", lw=1.2, label="reference")
+    for model, run in runs.items():
+        X = run["states"]
+        ax.plot(X[m, 1] * MM, X[m, 2] * MM, lw=0.8, label=model)
+        ax2.plot(t[m], np.linalg.norm(X[m, 3:], axis=1), lw=0.8, label=model)
+    ax.set(xlabel="y [mm]", ylabel="z [mm]", aspect="equal", title=reference.name)
+    ax2.set(xlabel="t [s]", ylabel="tip speed [m/s]")
+    ax2.legend(fontsize=8)
+    return fig
+
+
+def break_curve(breakdown, limit_pct: float):
+    """Per-revolution y-z RMSE (% of L) against the reference speed of the revolution, one
+    line per model, with the break threshold."""
+    fig, ax = plt.subplots(figsize=(6.4, 3.8))
+    for model, rows in breakdown.groupby("model", sort=False):
+        ax.plot(rows.reference_speed, rows.rmse_pct_L, "o-", ms=3, label=model)
+    ax.axhline(limit_pct, color="k", ls=":", label=f"break: {limit_pct:g} % of L")
+    ax.set(xlabel="reference tip speed of the revolution [m/s]", ylabel="y-z RMSE [% of L]", yscale="log")
+    ax.legend(fontsize=8)
+    return fig
+
+
+def forward_inverse(reference, run, dt: float):
+    """Forward-then-inverse: the 3D tip path of the reference and of the re-executed plan, and
+    the true against the reconstructed u_1, u_2."""
+    fig = plt.figure(figsize=(11, 3.8))
+    ax = fig.add_subplot(1, 3, 1, projection="3d")
+    ax.plot(*(reference.states[:, :3] * MM).T, "k--", lw=1.2, label="reference")
+    ax.plot(*(run["states"][:, :3] * MM).T, lw=0.9, label="re-executed")
+    ax.set(xlabel="x [mm]", ylabel="y [mm]", zlabel="z [mm]", title=reference.name)
+    ax.legend(fontsize=7)
+    t = np.arange(len(run["u"])) * dt
+    for k in range(2):
+        ax_u = fig.add_subplot(1, 3, k + 2)
+        ax_u.plot(t, reference.u_true[:, k], "k--", lw=1.2, label="true")
+        ax_u.plot(t, run["u"][:, k], lw=0.9, label="reconstructed")
+        ax_u.set(xlabel="t [s]", ylabel=f"$u_{k + 1}$ [N]")
+    ax_u.legend(fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
+def uncertainty(spread, error, families, burst_time, burst_spread, burst_error):
+    """Left: mean actuation spread over noise draws against tracking RMSE, one dot per
+    reference, coloured by family. Right: spread and tip error over the burst circle."""
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(10, 3.8))
+    for k, family in enumerate(dict.fromkeys(families)):
+        chosen = np.asarray(families) == family
+        ax.scatter(np.asarray(spread)[chosen], np.asarray(error)[chosen], s=18, color=f"C{k}", label=family)
+    ax.set(xscale="log", yscale="log", xlabel="actuation spread over noise draws [N]", ylabel="tracking RMSE [mm]")
+    ax.legend(fontsize=8)
+    ax2.plot(burst_time, burst_spread, color="C0")
+    ax2.set(xlabel="t [s]", ylabel="actuation spread [N]")
+    ax2.yaxis.label.set_color("C0")
+    twin = ax2.twinx()
+    twin.plot(burst_time, np.asarray(burst_error) * MM, color="C3", lw=0.8)
+    twin.set_ylabel("tip error [mm]", color="C3")
+    twin.grid(False)
+    return fig
+
+
+def twin_tracking(runs: dict, references: dict, names, dt: float):
+    """Camera-measured y-z tracking on the hardware twin: rows are configurations, columns
+    shapes; the reference dashed, the camera track solid, Initial (diamond) and Start (dot)."""
+    fig, axes = plt.subplots(len(runs), len(names), figsize=(3.3 * len(names), 3.3 * len(runs)), squeeze=False)
+    for row, (config, config_runs) in enumerate(runs.items()):
+        for ax, name in zip(axes[row], names):
+            r, run = references[config][name], config_runs[name]
+            scored = r.mask[np.round(run["frame_times"] / dt).astype(int)]
+            ax.plot(r.states[r.mask, 1] * MM, r.states[r.mask, 2] * MM, "k--", lw=1.2, label="reference")
+            ax.plot(run["tracked"][scored, 1] * MM, run["tracked"][scored, 2] * MM, lw=1, label="camera")
+            start = np.argmax(r.mask)
+            ax.plot(r.states[0, 1] * MM, r.states[0, 2] * MM, "kD", mfc="none", label="Initial")
+            ax.plot(r.states[start, 1] * MM, r.states[start, 2] * MM, "ko", label="Start")
+            ax.set(title=f"{name} ({config})", xlabel="y [mm]", ylabel="z [mm]", aspect="equal")
+    axes[0, -1].legend(fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
+def images(pictures: dict, columns: int = 2):
+    """BGR images (OpenCV order) in a grid, titled by their keys."""
+    rows = -(-len(pictures) // columns)
+    fig, axes = plt.subplots(rows, columns, figsize=(5 * columns, 3.9 * rows), squeeze=False)
+    for ax in axes.flat:
+        ax.axis("off")
+    for ax, (title, picture) in zip(axes.flat, pictures.items()):
+        ax.imshow(picture[..., ::-1])
+        ax.set_title(title)
+    fig.tight_layout()
+    return fig

@@ -11,6 +11,7 @@ import numpy as np
 from .checks import check_choice
 
 REPO = Path(__file__).resolve().parent.parent
+SEQUENCE_MODELS = ("lstm", "transformer")  # models that read a window of past transitions
 
 
 @dataclass(frozen=True)
@@ -39,6 +40,16 @@ class Profile:
     bench_episodes: int = 64  # episodes timed in notebook 01's speed summary
     seed: int = 0
     train: TrainConfig = TrainConfig()
+    # Budget of the per-step models (MLP, RF family), which run an epoch ~10x faster than the
+    # sequence models: the same data, a similar wall time. None: the same as ``train``.
+    per_step_train: TrainConfig | None = None
+    twin_sensitivity_shapes: int = 4  # Table III shapes replayed per reality-gap variant (notebook 06)
+
+    def train_config(self, model: str) -> TrainConfig:
+        """The training budget of ``model`` in this profile."""
+        if model in SEQUENCE_MODELS or self.per_step_train is None:
+            return self.train
+        return self.per_step_train
 
     @property
     def data_spec(self) -> dict:
@@ -52,10 +63,11 @@ class Profile:
 
 
 PROFILES = {
-    "ci": Profile("ci", n_episodes=200, bench_episodes=64,
+    "ci": Profile("ci", n_episodes=200, bench_episodes=64, twin_sensitivity_shapes=1,
                   train=TrainConfig(epochs=4, steps_per_epoch=150, batch_size=256, warmup_steps=50, val_samples=5000,
                                     patience=3)),
-    "paper": Profile("paper", n_episodes=3000, bench_episodes=3000),
+    "paper": Profile("paper", n_episodes=3000, bench_episodes=3000,
+                     per_step_train=TrainConfig(epochs=240, patience=30)),
 }
 
 

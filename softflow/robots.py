@@ -82,3 +82,5 @@ HW_ROBOT = Robot(
     density=12400.0,
     cable_angles=(0.0, 2 * math.pi / 3, 4 * math.pi / 3),
 )
+
+ROBOTS = {robot.name: robot for robot in (SIM_ROBOT, HW_ROBOT)}

@@ -26,6 +26,9 @@ NOMINAL_SPEED = 0.15  # m/s, mean tip speed along a structured path
 APPROACH_SECONDS = 1.5  # s, rest pose -> path start
 RAMP_SECONDS = 0.5  # s, speed ramps at the start and the end of a path
 SIZE = 0.12  # m, half-extent of a structured shape in y-z
+HARDWARE_SHAPES = ("star", "spiral", "circle", "heart")  # Table III
+HARDWARE_SIZE = 0.05  # m: the stiffer hardware rod reaches about 0.08 m from its rest tip at 4 N
+HARDWARE_BURST_RADIUS = 0.05  # m
 
 
 @dataclass(frozen=True)
@@ -159,8 +162,10 @@ def shape_reference(sim: Simulator, name: str, size: float = SIZE, centre=(0.0, 
 
 
 def burst_circle_reference(sim: Simulator, radius: float = 0.15, periods=(5.0, 1.2), duration: float = 12.0,
-                           centre=(0.0, 0.0)) -> Reference:
+                           centre=(0.0, 0.0), name: str = "burst_circle") -> Reference:
     """A circle whose period falls linearly from periods[0] to periods[1] s over ``duration``."""
+    if not (radius > 0 and duration > 0 and min(periods) > 0):
+        raise ValueError(f"radius, duration and periods must be positive; got {radius!r}, {duration!r}, {periods!r}")
     t = np.arange(int(round(duration / DT)) + 1) * DT
     period = periods[0] + (periods[1] - periods[0]) * t / duration
     slope = (periods[1] - periods[0]) / duration
@@ -169,7 +174,7 @@ def burst_circle_reference(sim: Simulator, radius: float = 0.15, periods=(5.0, 1
     yz = np.asarray(centre) + radius * np.stack([np.cos(angle), np.sin(angle)], -1)
     rate = radius * angle_rate[:, None] * np.stack([-np.sin(angle), np.cos(angle)], -1)
     states, mask = _with_approach(sim, yz, rate)
-    return Reference("burst_circle", "burst", states, mask)
+    return Reference(name, "burst", states, mask)
 
 
 def actuated_references(sim: Simulator, u, names, family: str):
@@ -222,6 +227,30 @@ def cached_references(sim: Simulator, kind: str, build) -> list[Reference]:
 
 def _evaluation_set(sim: Simulator) -> list[Reference]:
     return [shape_reference(sim, name) for name in STRUCTURED] + random_references(sim)
+
+
+def _burst_set(sim: Simulator) -> list[Reference]:
+    paper = burst_circle_reference(sim)
+    # the same falling-period law continued until tracking must break: 5.0 -> 0.3 s at the paper's slope
+    beyond = burst_circle_reference(sim, periods=(5.0, 0.3), duration=12.0 * 4.7 / 3.8, name="burst_to_0.3s")
+    return [paper, beyond]
+
+
+def burst_references(sim: Simulator) -> list[Reference]:
+    """The paper's burst circle (period 5.0 -> 1.2 s over 12 s) and its continuation to 0.3 s, cached."""
+    return cached_references(sim, "burst", _burst_set)
+
+
+def _hardware_set(sim: Simulator) -> list[Reference]:
+    centre = sim.tip_positions(sim.rest_q()[None])[0, 1:]  # shapes drawn about the rest tip
+    shapes = [shape_reference(sim, name, size=HARDWARE_SIZE, centre=centre) for name in HARDWARE_SHAPES]
+    return shapes + [burst_circle_reference(sim, radius=HARDWARE_BURST_RADIUS, centre=centre)]
+
+
+def hardware_references(sim: Simulator) -> list[Reference]:
+    """Table III's shapes and the burst circle, sized for the hardware rod and centred on its
+    rest tip (which sags in the horizontal configuration), cached."""
+    return cached_references(sim, "hardware", _hardware_set)
 
 
 def evaluation_references(sim: Simulator) -> list[Reference]:

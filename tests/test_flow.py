@@ -97,13 +97,33 @@ def test_plans_are_reproducible_and_noise_can_be_fresh(dataset, tmp_path):
     model, _ = train.train("rf", dataset, QUICK, tmp_path / "rf.pt", progress=False)
     controller = control.Controller(model, "rf", seed=3)
     reference = dataset.states[0]
-    np.testing.assert_array_equal(controller.plan(reference), controller.plan(reference))
-    assert not np.allclose(controller.plan(reference), controller.plan(reference, seed=4))
-    assert not np.allclose(controller.plan(reference), controller.plan(reference, fresh_noise=True))
+    seeded = controller.plan(reference, noise="seeded")
+    np.testing.assert_array_equal(seeded, controller.plan(reference, noise="seeded"))
+    assert not np.allclose(seeded, controller.plan(reference, noise="seeded", seed=4))
+    assert not np.allclose(seeded, controller.plan(reference, noise="fresh"))
     window = torch.as_tensor(train.gather_windows(reference[None], np.zeros(5, int), np.arange(5), 1), dtype=torch.float32)
     with torch.no_grad():
         centre = model.predict(window, noise=torch.zeros(5, 2)).numpy()
-    np.testing.assert_allclose(controller.plan(reference, zero_noise=True)[:5], centre, atol=1e-6)
+    np.testing.assert_allclose(controller.plan(reference)[:5], centre, atol=1e-6)  # z = 0 by default
+    with pytest.raises(ValueError, match="noise"):
+        controller.plan(reference, noise="none")
+
+
+def test_samples_are_independent_draws_and_their_mean_is_a_plan(dataset, tmp_path):
+    model, _ = train.train("rf", dataset, QUICK, tmp_path / "rf.pt", progress=False)
+    controller = control.Controller(model, "rf", seed=3)
+    references = dataset.states[:2]
+    samples = controller.sample(references, 5)
+    assert samples.shape == (5, 2, references.shape[1] - 1, 2)
+    assert samples.std(0).min() > 0  # every step differs between draws
+    np.testing.assert_array_equal(controller.sample(references[0], 5), controller.sample(references[:1], 5)[:, 0])
+    np.testing.assert_allclose(controller.plan(references, noise="seeded", n_samples=5), samples.mean(0))
+    regression = control.Controller(train.train("mlp", dataset, QUICK, tmp_path / "mlp.pt", progress=False)[0], "mlp")
+    assert np.ptp(regression.sample(references[0], 3), axis=0).max() == 0
+    with pytest.raises(ValueError, match="positive integer"):
+        controller.sample(references, 0)
+    with pytest.raises(ValueError, match="n_samples"):
+        controller.plan(references, n_samples=3)
 
 
 @pytest.mark.parametrize("name", ["rf", "rf-fwd"])

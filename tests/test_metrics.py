@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from softflow.metrics import actuation_mae, input_energy, latency, phase_lag, tracking_rmse
+from softflow.metrics import actuation_mae, input_energy, latency, peak_speed, phase_lag, tracking_rmse
 
 
 def test_rmse_of_a_hand_worked_case_ignores_masked_samples():
@@ -12,6 +12,16 @@ def test_rmse_of_a_hand_worked_case_ignores_masked_samples():
     achieved[2, :3] = [1.0, 1.0, 1.0]  # in the approach segment: masked out
     rmse = tracking_rmse(achieved, reference, mask=[True, True, False])
     assert rmse == pytest.approx(np.sqrt(0.005**2 / 2))  # 3.536 mm
+    in_plane = tracking_rmse(achieved, reference, mask=[True, True, False], axes=(1, 2))
+    assert in_plane == pytest.approx(np.sqrt(0.004**2 / 2))  # the x error does not count in y-z
+
+
+def test_peak_speed_of_a_hand_worked_case():
+    states = np.zeros((3, 6))
+    states[0, 3:] = [0.0, 3.0, 4.0]  # 5 m/s
+    states[1, 3:] = [1.0, 0.0, 0.0]
+    states[2, 3:] = [9.0, 0.0, 0.0]  # masked out
+    assert peak_speed(states, mask=[True, True, False]) == pytest.approx(5.0)
 
 
 @pytest.mark.parametrize("delay", [0.0, 0.02, 0.0375, -0.051])
@@ -37,6 +47,8 @@ def test_latency_reports_median_and_p99():
 def test_bad_inputs_are_rejected():
     with pytest.raises(ValueError, match="mask"):
         tracking_rmse(np.zeros((3, 6)), np.zeros((3, 6)), mask=[False, False, False])
+    with pytest.raises(ValueError, match="axes"):
+        tracking_rmse(np.zeros((3, 6)), np.zeros((3, 6)), axes=(3,))
     with pytest.raises(ValueError, match="same shape"):
         phase_lag(np.zeros(500), np.zeros(600), 0.01)
     with pytest.raises(ValueError, match="longer"):

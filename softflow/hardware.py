@@ -1,0 +1,263 @@
+"""Hardware replay (Sec. V): planned actuation becomes per-cable motor commands, replayed on a
+twin plant across a stated reality gap and watched by a camera.
+
+The model is driven by differential tensions u, the robot by motors that hold cable
+positions, so commands are made *through the model*: the tension-driven twin's rod shape
+gives each cable's path-length change Delta_c(q) (``cables.cable_displacements``), and a
+cable of stiffness k carries k (l_c + Delta_c(q)) when its motor has pulled in l_c. To
+produce the planned tensions T_c(u) (u split over the three cables above a pretension,
+``cables.cable_tensions``) the motor pulls in l_c = T_c / k - Delta_c(q), with Delta_c
+averaged over the control step.
+
+The plant is the same rod with every term of ``RealityGap``: its E, eta, rho are off,
+motors follow their commands with a first-order lag, each cable has its own slack
+(tension k max(0, stretch - slack)), and the camera adds its noise. Cable tension is
+re-evaluated every quarter step, as the physical cable would.
+
+Command files (CSV, for a motor controller replaying at 100 Hz): header
+``time_s,l1_mm,l2_mm,l3_mm``, one row per 0.01 s; l_c is the cable length pulled in by
+motor c (mm) relative to the slack-free straight rod; cables in the order of
+``robot.cable_angles`` (cable 1 at +y, then 120 degree steps towards +z).
+
+Recordings of a real run (``load_recording``): a marker CSV ``time_s,x_m,y_m,z_m`` in the
+robot frame, or an RGB-D ``.npz`` in the ``vision.write_rgbd`` format, tracked here.
+"""
+from __future__ import annotations
+
+import os
+import tempfile
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from . import vision
+from .cables import cable_actuation, cable_displacements, cable_tensions
+from .checks import as_real_array
+from .data import DT, U_MAX
+from .metrics import peak_speed, tracking_rmse
+from .robots import Robot
+from .sim import Simulator
+
+CABLE_STIFFNESS = 1000.0  # N/m, line + guides + motor mount in series (assumed; docs/assumptions.md)
+PRETENSION = 1.0  # N, the slackest cable's tension: keeps every cable taut
+CAMERA_DISTANCE = 0.4  # m, camera beyond the rest tip, looking back along the rod
+
+
+@dataclass(frozen=True)
+class RealityGap:
+    """Everything that separates the plant from the model used to plan, in one seeded place."""
+
+    youngs_modulus: float = 0.0  # relative error of the plant's E
+    damping: float = 0.0  # relative error of its eta
+    density: float = 0.0  # relative error of its rho
+    motor_lag: float = 0.0  # s, time constant of each motor's position loop
+    slack: float = 0.0  # m, each cable's slack is drawn uniformly from [0, slack]
+    depth_noise: float = 0.0  # m at 1 m, the camera's depth noise (grows with Z^2)
+    pixel_noise: float = 0.0  # colour noise of the camera, 0-255
+    seed: int = 0
+
+    def __post_init__(self):
+        for name, value in asdict(self).items():
+            if not np.isfinite(value):
+                raise ValueError(f"{name} must be finite; got {value!r}")
+        for name in ("motor_lag", "slack", "depth_noise", "pixel_noise"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"{name} must be >= 0; got {getattr(self, name)!r}")
+        if min(self.youngs_modulus, self.damping, self.density) <= -1:
+            raise ValueError("relative parameter errors must be > -1 (a positive parameter stays positive)")
+
+    def plant_robot(self, robot: Robot) -> Robot:
+        return replace(robot, youngs_modulus=robot.youngs_modulus * (1 + self.youngs_modulus),
+                       damping=robot.damping * (1 + self.damping), density=robot.density * (1 + self.density))
+
+    def doubled(self, term: str) -> RealityGap:
+        """This gap with one term twice as large: the sensitivity study."""
+        if term not in GAP_TERMS:
+            raise ValueError(f"term must be one of {GAP_TERMS}; got {term!r}")
+        return replace(self, **{term: 2 * getattr(self, term)})
+
+
+GAP_TERMS = ("youngs_modulus", "damping", "density", "motor_lag", "slack", "depth_noise", "pixel_noise")
+NO_GAP = RealityGap()
+# A bench-top rod: E, eta, rho within 10-20 % of their nominal values, a hobby servo's lag,
+# a few tenths of a millimetre of slack, D435-like depth and colour noise.
+TYPICAL_GAP = RealityGap(youngs_modulus=-0.15, damping=0.20, density=0.10, motor_lag=0.02, slack=3e-4,
+                         depth_noise=1e-3, pixel_noise=3.0)
+
+
+def cable_commands(u, sim: Simulator, stiffness: float = CABLE_STIFFNESS, pretension: float = PRETENSION):
+    """Planned actuation (B, T, 2) -> motor commands (B, T, C) in m, through the tension-driven
+    model ``sim`` (the rod shape it predicts for the plan)."""
+    u, _ = as_real_array(u, "u", (None, None, 2))
+    if not stiffness > 0:
+        raise ValueError(f"stiffness must be positive; got {stiffness!r}")
+    B, T, _ = u.shape
+    q, _ = sim.integrate(u, sim.rest_q(), np.zeros(sim.nq))
+    delta = cable_displacements(sim.bend_angles(q.reshape(-1, sim.nq)), sim.robot).reshape(B, T + 1, -1)
+    tensions = cable_tensions(u.reshape(-1, 2), sim.robot, pretension).reshape(B, T, -1)
+    return tensions / stiffness - 0.5 * (delta[:, :-1] + delta[:, 1:])
+
+
+class CablePlant:
+    """The twin robot: motor positions in, rod motion out, across a ``RealityGap``."""
+
+    def __init__(self, robot: Robot, gravity: str, gap: RealityGap = NO_GAP, *, stiffness: float = CABLE_STIFFNESS,
+                 pretension: float = PRETENSION, substeps: int = 4):
+        self.robot, self.gap, self.stiffness, self.pretension, self.substeps = robot, gap, stiffness, pretension, substeps
+        self.sim = Simulator(gap.plant_robot(robot), gravity, dt=DT / substeps, substeps=1, threads=1)
+        self.slack = np.random.default_rng(gap.seed).uniform(0.0, gap.slack, robot.n_cables)
+
+    def _cable_stretch(self, motor, q):
+        return motor + cable_displacements(self.sim.bend_angles(q), self.robot) - self.slack
+
+    def replay(self, commands) -> dict:
+        """Motor commands (B, T, C) in m, held for DT each -> dict of tip ``states`` (B, T+1, 6),
+        rod ``q`` (B, T+1, nq) and mean cable ``tensions`` (B, T, C) per step."""
+        commands, _ = as_real_array(commands, "commands", (None, None, self.robot.n_cables))
+        B, T, C = commands.shape
+        sim, h = self.sim, DT / self.substeps
+        q, qd = np.repeat(sim.rest_q()[None], B, 0), np.zeros((B, sim.nq))
+        # at rest every motor holds the command of the rest pose (its pretension, less any slack)
+        motor = self.pretension / self.stiffness - cable_displacements(sim.bend_angles(q), self.robot)
+        follow = 1.0 - np.exp(-h / self.gap.motor_lag) if self.gap.motor_lag > 0 else 1.0
+        qs, qds, tensions = [q], [qd], np.zeros((B, T, C))
+        for t in range(T):
+            for _ in range(self.substeps):
+                motor = motor + follow * (commands[:, t] - motor)
+                tension = self.stiffness * np.maximum(self._cable_stretch(motor, q + 0.5 * h * qd), 0.0)
+                q, qd = (x[:, -1] for x in sim.integrate(cable_actuation(tension, self.robot)[:, None], q, qd))
+                tensions[:, t] += tension / self.substeps
+            qs.append(q)
+            qds.append(qd)
+        qs, qds = np.stack(qs, 1), np.stack(qds, 1)
+        states = sim.tip_state(qs.reshape(-1, sim.nq), qds.reshape(-1, sim.nq)).reshape(B, T + 1, 6)
+        return dict(states=states, q=qs, tensions=tensions)
+
+
+def twin_camera(sim: Simulator, gap: RealityGap = NO_GAP) -> vision.Camera:
+    """The camera of the replay: on the rod's axis, CAMERA_DISTANCE beyond its rest tip."""
+    rest_tip = sim.tip_positions(sim.rest_q()[None])[0]
+    return vision.camera_facing(rest_tip, CAMERA_DISTANCE, depth_noise=gap.depth_noise, pixel_noise=gap.pixel_noise)
+
+
+def observe_run(sim: Simulator, q, camera: vision.Camera, seed: int = 0):
+    """Render a rod motion q (T+1, nq) sampled at DT and track its tip marker: (frame times, (K, 3))."""
+    positions, _ = sim.centerline(q)
+    times = np.arange(len(q)) * DT
+    return vision.observe(times, positions[:, -1], camera, np.random.default_rng(seed), centerlines=positions)
+
+
+def stroboscope_run(sim: Simulator, q, camera: vision.Camera, interval: float = 0.4, seed: int = 0) -> np.ndarray:
+    """One multi-exposure picture of a rod motion q (T+1, nq): a frame every ``interval`` s."""
+    every = int(round(interval / DT))
+    if every < 1:
+        raise ValueError(f"interval must be at least one sample ({DT} s); got {interval!r}")
+    positions, _ = sim.centerline(q[::every])
+    frames = vision.render(positions[:, -1], camera, seed, centerlines=positions)
+    return vision.stroboscope((color for color, _ in frames), every=1)
+
+
+def tracked_rmse(frame_times, tracked, reference) -> float:
+    """3D RMSE (m) of a camera track against a reference sampled at DT, over the frames inside
+    the reference's mask that found the marker."""
+    frame_times, tracked = np.asarray(frame_times, float), np.asarray(tracked, float)
+    index = np.round(frame_times / DT).astype(int)
+    if index.min() < 0 or index.max() >= len(reference.states):
+        raise ValueError("frame times must lie within the reference")
+    t_ref = np.arange(len(reference.states)) * DT
+    expected = np.stack([np.interp(frame_times, t_ref, reference.states[:, k]) for k in range(3)], -1)
+    scored = reference.mask[index] & np.isfinite(tracked).all(1)
+    if not scored.any():
+        raise ValueError("no tracked frame falls inside the reference's mask")
+    return float(np.sqrt(np.mean(np.sum((tracked[scored] - expected[scored]) ** 2, axis=1))))
+
+
+def run_twin(controller, references, sim: Simulator, gap: RealityGap, *, command_dir=None, u_limit: float = U_MAX,
+             seed: int = 0):
+    """The hardware experiment on the twin: plan every reference with ``controller`` (trained on
+    the model ``sim``), turn the plans into motor commands through ``sim`` (written as CSV to
+    ``command_dir`` if given), replay them on the plant across ``gap`` in one batch, film each
+    run and score the camera track. Returns a DataFrame (one row per reference) and
+    {name: dict(u, commands, states, q, frame_times, tracked)}."""
+    plans = [np.clip(controller.plan(r.states), -u_limit, u_limit) for r in references]
+    longest = max(len(u) for u in plans)
+    padded = np.stack([np.concatenate([u, np.repeat(u[-1:], longest - len(u), 0)]) for u in plans])
+    commands = cable_commands(padded, sim)
+    plant = CablePlant(sim.robot, sim.gravity, gap)
+    replayed = plant.replay(commands)
+    camera = twin_camera(sim, gap)
+    rows, runs = [], {}
+    for k, (r, u) in enumerate(zip(references, plans)):
+        n = len(u)
+        run = dict(u=u, commands=commands[k, :n], states=replayed["states"][k, : n + 1], q=replayed["q"][k, : n + 1])
+        if command_dir is not None:
+            write_commands(Path(command_dir) / f"{r.name}.csv", run["commands"])
+        run["frame_times"], run["tracked"] = observe_run(plant.sim, run["q"], camera, seed=seed + k)
+        rows.append(dict(reference=r.name, family=r.family, gravity=sim.gravity,
+                         rmse_mm=1e3 * tracked_rmse(run["frame_times"], run["tracked"], r),
+                         rmse_true_mm=1e3 * tracking_rmse(run["states"], r.states, r.mask),
+                         peak_speed=peak_speed(run["states"], r.mask),
+                         lost_frames=int(np.isnan(run["tracked"]).any(1).sum())))
+        runs[r.name] = run
+    return pd.DataFrame(rows), runs
+
+
+def write_commands(path, commands, dt: float = DT):
+    """Motor commands (T, C) in m -> the CSV a motor controller replays (format: module docstring)."""
+    commands, _ = as_real_array(commands, "commands", (None, None))
+    frame = pd.DataFrame(1e3 * commands, columns=[f"l{c + 1}_mm" for c in range(commands.shape[1])])
+    frame.insert(0, "time_s", np.arange(len(commands)) * dt)
+    _write_atomic(Path(path), frame.to_csv(index=False, float_format="%.4f"))
+
+
+def read_commands(path) -> np.ndarray:
+    """A command CSV -> (T, C) in m."""
+    frame = _read_csv(Path(path), "time_s")
+    columns = [c for c in frame.columns if c.startswith("l") and c.endswith("_mm")]
+    if not columns:
+        raise ValueError(f"{path}: expected columns time_s,l1_mm,l2_mm,...; got {list(frame.columns)}")
+    return 1e-3 * frame[columns].to_numpy(float)
+
+
+def write_marker_csv(path, times, positions):
+    """A marker track (K,) times and (K, 3) robot-frame positions -> the recording CSV format."""
+    positions, _ = as_real_array(positions, "positions", (len(times), 3))
+    frame = pd.DataFrame(positions, columns=["x_m", "y_m", "z_m"])
+    frame.insert(0, "time_s", np.asarray(times, float))
+    _write_atomic(Path(path), frame.to_csv(index=False, float_format="%.6f"))
+
+
+def load_recording(path):
+    """A run of a real (or twin) robot -> (times (K,), marker positions (K, 3)) in the robot
+    frame: a marker CSV as is, an RGB-D .npz through the same tracking as the twin."""
+    path = Path(path)
+    if path.suffix == ".npz":
+        times, frames, camera = vision.read_rgbd(path)
+        return np.asarray(times, float), vision.track(frames, camera)
+    frame = _read_csv(path, "time_s")
+    missing = {"x_m", "y_m", "z_m"} - set(frame.columns)
+    if missing:
+        raise ValueError(f"{path}: expected columns time_s,x_m,y_m,z_m; missing {sorted(missing)}")
+    return frame.time_s.to_numpy(float), frame[["x_m", "y_m", "z_m"]].to_numpy(float)
+
+
+def _read_csv(path: Path, first: str) -> pd.DataFrame:
+    if not path.exists():
+        raise ValueError(f"no such file: {path}")
+    try:
+        frame = pd.read_csv(path)
+    except (pd.errors.ParserError, UnicodeDecodeError, pd.errors.EmptyDataError) as error:
+        raise ValueError(f"{path} is not a readable CSV: {error}") from error
+    if first not in frame.columns or frame.isna().any().any():
+        raise ValueError(f"{path}: expected a '{first}' column and no missing values")
+    return frame
+
+
+def _write_atomic(path: Path, text: str):
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
+    with os.fdopen(fd, "w") as f:
+        f.write(text)
+    os.replace(tmp, path)

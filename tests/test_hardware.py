@@ -1,0 +1,93 @@
+"""Hardware twin: commands through the model, the cable-driven plant, files in and out."""
+import dataclasses
+
+import numpy as np
+import pytest
+
+from softflow import hardware, vision
+from softflow.data import DT, sum_of_sines_excitation
+from softflow.robots import HW_ROBOT
+from softflow.sim import Simulator
+from softflow.trajectories import Reference
+
+
+@pytest.fixture(scope="module", params=["vertical", "horizontal"])
+def sim(request):
+    return Simulator(HW_ROBOT, request.param)
+
+
+@pytest.fixture(scope="module")
+def u():
+    return sum_of_sines_excitation(2, 200, 7, u_max=3.5, frequencies=(0.2, 1.5))
+
+
+def test_replaying_the_commands_without_a_gap_reproduces_the_tension_driven_motion(sim, u):
+    expected = sim.rollout(u)
+    replayed = hardware.CablePlant(HW_ROBOT, sim.gravity).replay(hardware.cable_commands(u, sim))
+    error = np.linalg.norm(replayed["states"][..., :3] - expected[..., :3], axis=-1)
+    assert np.ptp(expected[..., 1:3]) > 0.05  # the rod really moves
+    assert error.max() < 0.5e-3
+    assert replayed["tensions"].min() > 0  # the pretension keeps every cable taut
+
+
+def test_the_reality_gap_moves_the_plant_and_every_term_counts(sim, u):
+    expected = sim.rollout(u)
+    commands = hardware.cable_commands(u, sim)
+    for term, value in [("youngs_modulus", -0.15), ("motor_lag", 0.03), ("slack", 5e-4)]:
+        gap = dataclasses.replace(hardware.NO_GAP, **{term: value})
+        replayed = hardware.CablePlant(HW_ROBOT, sim.gravity, gap).replay(commands)
+        assert np.abs(replayed["states"][..., :3] - expected[..., :3]).max() > 1e-3, term
+
+
+def test_gap_terms_scale_the_plant_and_are_checked():
+    gap = hardware.RealityGap(youngs_modulus=-0.1, damping=0.2, density=0.1)
+    robot = gap.plant_robot(HW_ROBOT)
+    assert robot.youngs_modulus == pytest.approx(0.9 * HW_ROBOT.youngs_modulus)
+    assert robot.damping == pytest.approx(1.2 * HW_ROBOT.damping)
+    assert gap.doubled("density").density == pytest.approx(0.2)
+    with pytest.raises(ValueError, match="term"):
+        gap.doubled("gravity")
+    with pytest.raises(ValueError, match="motor_lag"):
+        hardware.RealityGap(motor_lag=-0.01)
+    with pytest.raises(ValueError, match="relative"):
+        hardware.RealityGap(youngs_modulus=-1.0)
+
+
+def test_command_files_round_trip_and_bad_files_are_named(tmp_path):
+    commands = np.random.default_rng(0).uniform(-5e-3, 5e-3, (50, 3))
+    path = tmp_path / "circle.csv"
+    hardware.write_commands(path, commands)
+    assert path.read_text().splitlines()[0] == "time_s,l1_mm,l2_mm,l3_mm"
+    np.testing.assert_allclose(hardware.read_commands(path), commands, atol=1e-7)  # 0.1 um in the file
+    path.write_text("not,a\ncommand file\n")
+    with pytest.raises(ValueError, match="circle.csv"):
+        hardware.read_commands(path)
+    with pytest.raises(ValueError, match="no such file"):
+        hardware.read_commands(tmp_path / "missing.csv")
+
+
+def test_tracked_rmse_of_a_hand_worked_case():
+    states = np.zeros((101, 6))
+    states[:, 1] = np.linspace(0, 0.1, 101)
+    reference = Reference("line", "shape", states, np.arange(101) >= 20)
+    frame_times = np.arange(0, 1.0001, 0.1)
+    tracked = np.interp(frame_times, np.arange(101) * DT, states[:, 1])[:, None] * [0, 1, 0] + [0, 0, 0.002]
+    tracked[-1] = np.nan  # a frame without the marker is skipped
+    assert hardware.tracked_rmse(frame_times, tracked, reference) == pytest.approx(0.002)
+
+
+def test_recordings_load_from_a_marker_csv_and_from_rgbd_frames(tmp_path):
+    sim = Simulator(HW_ROBOT, "vertical")
+    q = sim.static_q(np.stack([np.linspace(0, 3, 12), np.linspace(0, -2, 12)], -1))
+    tips = sim.tip_positions(q)
+    times = np.arange(12) / 30
+    hardware.write_marker_csv(tmp_path / "run.csv", times, tips)
+    loaded_times, positions = hardware.load_recording(tmp_path / "run.csv")
+    np.testing.assert_allclose(loaded_times, times, atol=1e-6)  # microsecond timestamps
+    np.testing.assert_allclose(positions, tips, atol=1e-6)
+
+    camera = hardware.twin_camera(sim, hardware.TYPICAL_GAP)
+    centerlines, _ = sim.centerline(q)
+    vision.write_rgbd(tmp_path / "run.npz", times, vision.render(tips, camera, 0, centerlines=centerlines), camera)
+    _, tracked = hardware.load_recording(tmp_path / "run.npz")
+    assert np.sqrt(np.mean(np.sum((tracked - tips) ** 2, axis=1))) < 1e-3
