@@ -134,10 +134,13 @@ def save_table(profile: Profile, table: pd.DataFrame, name: str, digits: int = 2
     return text
 
 
-def notebook_wall_times(run_dir: Path) -> pd.Series:
-    """Minutes per notebook of a papermill run (from each executed notebook's metadata)."""
+def notebook_wall_times(run_dir: Path, before: str = "07") -> pd.Series:
+    """Minutes per notebook of a papermill run (from each executed notebook's metadata), for
+    the notebooks numbered before ``before`` (the running one has no duration yet)."""
     minutes = {}
     for path in sorted(Path(run_dir).glob("[0-9]*.ipynb")):
+        if path.name >= before:
+            continue
         duration = json.loads(path.read_text()).get("metadata", {}).get("papermill", {}).get("duration")
         if duration is not None:
             minutes[path.name] = duration / 60

@@ -1,0 +1,50 @@
+"""Tables from result CSVs: the paper's numbers beside ours, Markdown, and clear errors."""
+import pandas as pd
+import pytest
+
+from softflow import profiles, report
+
+
+@pytest.fixture
+def profile(tmp_path, monkeypatch):
+    monkeypatch.setattr(profiles, "REPO", tmp_path)
+    p = profiles.Profile("report-test", n_episodes=1)
+    p.output_dir.mkdir(parents=True)
+    return p
+
+
+def write_results(profile):
+    rows = []
+    for k, model in enumerate(report.MODELS):
+        rows += [dict(model=model, reference="circle", family="shape", rmse_mm=1.0 + k, phase_lag_s=0.01, input_energy=5.0),
+                 dict(model=model, reference="heart", family="shape", rmse_mm=3.0 + k, phase_lag_s=0.03, input_energy=5.0),
+                 dict(model=model, reference="Rand1", family="random", rmse_mm=10.0 + k, phase_lag_s=0.0, input_energy=18.0)]
+    frame = pd.DataFrame(rows)
+    frame[frame.model.isin(["mlp", "lstm", "transformer"])].to_csv(profile.output_dir / "results_baselines.csv", index=False)
+    frame[~frame.model.isin(["mlp", "lstm", "transformer"])].to_csv(profile.output_dir / "results_rf.csv", index=False)
+
+
+def test_table1_averages_per_family_beside_the_paper(profile):
+    write_results(profile)
+    table = report.table1(profile)
+    assert table.loc["mlp", ("shape_mm", "ours")] == pytest.approx(2.0)  # mean of 1 and 3
+    assert table.loc["rf-fwd", ("random_mm", "ours")] == pytest.approx(15.0)
+    assert table.loc["rf-fwd", ("random_mm", "paper")] == pytest.approx(3.5)
+    text = report.markdown(table, 1)
+    assert text.splitlines()[0] == "| model | shape_mm ours | shape_mm paper | random_mm ours | random_mm paper |"
+    assert "| RF-FWD | 7.0 | 5.0 | 15.0 | 3.5 |" in text
+
+
+def test_table2_marks_models_the_paper_does_not_report(profile):
+    write_results(profile)
+    table = report.table2(profile)
+    assert table.loc["mlp", ("phase_lag_s", "ours")] == pytest.approx(0.02)
+    assert "| RF | 0.020 | -- | 18.000 | -- |" in report.markdown(table, 3)
+
+
+def test_a_missing_result_names_the_notebook_that_writes_it(profile):
+    with pytest.raises(ValueError, match="03_baselines.ipynb"):
+        report.table1(profile)
+    write_results(profile)
+    with pytest.raises(ValueError, match="06_hardware_replay.ipynb"):
+        report.table3(profile)
