@@ -21,6 +21,7 @@ from .robots import HW_ROBOT
 MODELS = ["mlp", "lstm", "transformer", "rf", "rf-physical", "rf-fwd"]
 LABELS = {"mlp": "MLP", "lstm": "LSTM", "transformer": "Transformer", "rf": "RF", "rf-physical": "RF-Physical",
           "rf-fwd": "RF-FWD"}
+CODE = ("softflow", "notebooks", "Makefile", "environment.lock", "checkpoints")  # what decides the results
 # Where each result comes from: file -> notebook that writes it.
 SOURCES = {
     "results_baselines.csv": "03_baselines.ipynb", "training_baselines.csv": "03_baselines.ipynb",
@@ -158,12 +159,12 @@ def machine() -> str:
 
 
 def commit() -> str:
-    """The git commit of the code (with '+changes' when the tree is dirty), or 'unknown'."""
+    """The git commit of the code ('+changes' when the code differs from it), or 'unknown'."""
     try:
         head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=REPO, capture_output=True, text=True,
                               check=True).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=REPO, capture_output=True,
-                               text=True, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--", *CODE], cwd=REPO,
+                               capture_output=True, text=True, check=True).stdout.strip()
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
     return head + ("+changes" if dirty else "")

@@ -192,7 +192,7 @@ def random_references(sim: Simulator, n: int = 4, seconds: float = 5.0, seed: in
 def complex3d_references(sim: Simulator, n: int = 3, seconds: float = 8.0, seed: int = 2000):
     """Forward-then-inverse test: sine + sigmoid + ramp actuation, run through the simulator."""
     u = mixed_excitation(n, int(round(seconds / DT)), seed)
-    return actuated_references(sim, u, [f"Complex{k + 1}" for k in range(n)], "complex3d")
+    return actuated_references(sim, u, [f"Complex{seed}-{k + 1}" for k in range(n)], "complex3d")
 
 
 STRUCTURED = ("circle", "heart", "star", "spiral", "char_S", "char_C", "char_M", "char_W")
@@ -231,13 +231,13 @@ def _evaluation_set(sim: Simulator) -> list[Reference]:
 
 def _burst_set(sim: Simulator) -> list[Reference]:
     paper = burst_circle_reference(sim)
-    # the same falling-period law continued until tracking must break: 5.0 -> 0.3 s at the paper's slope
-    beyond = burst_circle_reference(sim, periods=(5.0, 0.3), duration=12.0 * 4.7 / 3.8, name="burst_to_0.3s")
+    # the same falling-period law continued until tracking must break: 5.0 -> 0.2 s at the paper's slope
+    beyond = burst_circle_reference(sim, periods=(5.0, 0.2), duration=12.0 * 4.8 / 3.8, name="burst_to_0.2s")
     return [paper, beyond]
 
 
 def burst_references(sim: Simulator) -> list[Reference]:
-    """The paper's burst circle (period 5.0 -> 1.2 s over 12 s) and its continuation to 0.3 s, cached."""
+    """The paper's burst circle (period 5.0 -> 1.2 s over 12 s) and its continuation to 0.2 s, cached."""
     return cached_references(sim, "burst", _burst_set)
 
 
