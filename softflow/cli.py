@@ -33,8 +33,7 @@ def main(argv=None):
     print(f"dataset {dataset.key}: {dataset.u.shape[0]} episodes ({time.perf_counter() - start:.0f} s)")
     if args.command == "train":
         for name in args.models:
-            _, checkpoint = train.train(name, dataset, profile.train_config(name),
-                                        control.checkpoint_path(name, profile.name, robot, args.gravity))
+            _, checkpoint = control.ensure_trained(name, profile, dataset, robot, args.gravity, progress=True)
             print(f"{name}: {checkpoint['epochs_run']} epochs, best validation loss {checkpoint['best_val']:.4f}, "
                   f"{checkpoint['wall_seconds'] / 60:.1f} min of training")
 

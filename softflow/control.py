@@ -14,10 +14,10 @@ from .data import DT, U_MAX, dataset_path
 from .models.common import one_thread
 from .models.flow import RectifiedFlow
 from .metrics import actuation_mae, input_energy, phase_lag, tracking_rmse
-from .profiles import REPO, get_profile
+from .profiles import REPO, Profile, get_profile
 from .robots import SIM_ROBOT, Robot
 from .sim import Simulator
-from .train import gather_windows, load_checkpoint, model_from_checkpoint
+from .train import gather_windows, load_checkpoint, model_from_checkpoint, train
 
 SHIPPED = REPO / "checkpoints"  # paper-profile weights, committed
 TRAINED = REPO / "data" / "checkpoints"  # anything else, rebuilt on demand
@@ -85,6 +85,15 @@ class Controller:
         with torch.inference_mode(), one_thread():
             u = self.model.predict(windows, **extras, **options).numpy().astype(np.float64).reshape(B, T, 2)
         return u[0] if unbatched else u
+
+
+def ensure_trained(name: str, profile: Profile, dataset, robot: Robot = SIM_ROBOT, gravity: str = "vertical", *,
+                   progress: bool = False):
+    """Train model ``name`` on ``dataset`` with the profile's budget for it, into the checkpoint
+    ``load_controller`` reads; a finished checkpoint of the same budget and data returns at once.
+    (A different budget would retrain and replace it: always go through here.)"""
+    return train(name, dataset, profile.train_config(name), checkpoint_path(name, profile.name, robot, gravity),
+                 progress=progress)
 
 
 def load_controller(name: str, profile: str = "paper", robot: Robot = SIM_ROBOT, gravity: str = "vertical") -> Controller:

@@ -1,4 +1,6 @@
 """The RF family: generative transport, the static prior, the consistency loss, sampling."""
+import dataclasses
+
 import numpy as np
 import pytest
 import torch
@@ -150,3 +152,15 @@ def test_lean_sampler_handles_the_physical_prior():
         expected = model.predict(window, prior=prior, noise=z).numpy()
     lean = LeanFlow(model).predict(window.double().numpy(), z.double().numpy(), prior=prior.double().numpy())
     np.testing.assert_allclose(lean, expected, atol=1e-5)
+
+
+def test_ensure_trained_uses_each_models_budget_and_reuses_the_checkpoint(dataset, tmp_path, monkeypatch):
+    monkeypatch.setattr(control, "TRAINED", tmp_path)
+    longer = dataclasses.replace(QUICK, epochs=4)
+    profile = dataclasses.replace(SMALL, train=QUICK, per_step_train=longer)
+    _, checkpoint = control.ensure_trained("rf", profile, dataset)
+    assert checkpoint["train_config"] == dataclasses.asdict(longer)  # a per-step model gets the longer budget
+    assert control.checkpoint_path("rf", profile.name) == tmp_path / "small" / "rf.pt"
+    stamp = (tmp_path / "small" / "rf.pt").stat().st_mtime_ns
+    control.ensure_trained("rf", profile, dataset)
+    assert (tmp_path / "small" / "rf.pt").stat().st_mtime_ns == stamp  # reused, not retrained
