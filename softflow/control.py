@@ -115,13 +115,19 @@ def expected_data_key(profile: str, robot: Robot = SIM_ROBOT, gravity: str = "ve
     return dataset_path(get_profile(profile), robot, gravity).stem
 
 
+def plan_all(controller, references, u_limit: float = U_MAX, **plan_options):
+    """Plan every reference and clip to the actuator range: the plans, and the same stacked
+    (R, T_max, 2) with shorter plans padded by holding their last u, ready for one batched run."""
+    plans = [np.clip(controller.plan(r.states, **plan_options), -u_limit, u_limit) for r in references]
+    longest = max(len(u) for u in plans)
+    return plans, np.stack([np.concatenate([u, np.repeat(u[-1:], longest - len(u), 0)]) for u in plans])
+
+
 def evaluate(controller, references, sim: Simulator, u_limit: float = U_MAX, **plan_options):
     """Plan every reference (``plan_options`` go to ``plan``, e.g. steps=N), clip to the
     actuator range, run all plans open loop from rest in one batched rollout, and score
     them. Returns a DataFrame (one row per reference) and {name: dict(u, states)}."""
-    plans = [np.clip(controller.plan(r.states, **plan_options), -u_limit, u_limit) for r in references]
-    longest = max(len(u) for u in plans)
-    padded = np.stack([np.concatenate([u, np.repeat(u[-1:], longest - len(u), 0)]) for u in plans])  # hold the last u
+    plans, padded = plan_all(controller, references, u_limit, **plan_options)
     achieved = sim.rollout(padded)
     rows, runs = [], {}
     for r, u, X in zip(references, plans, achieved):

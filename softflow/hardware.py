@@ -35,6 +35,7 @@ import pandas as pd
 from . import vision
 from .cables import cable_actuation, cable_displacements, cable_tensions
 from .checks import as_real_array
+from .control import plan_all
 from .data import DT, U_MAX
 from .metrics import peak_speed, tracking_rmse
 from .robots import Robot
@@ -181,9 +182,7 @@ def run_twin(controller, references, sim: Simulator, gap: RealityGap, *, command
     ``command_dir`` if given), replay them on the plant across ``gap`` in one batch, film each
     run and score the camera track. Returns a DataFrame (one row per reference) and
     {name: dict(u, commands, states, q, frame_times, tracked)}."""
-    plans = [np.clip(controller.plan(r.states), -u_limit, u_limit) for r in references]
-    longest = max(len(u) for u in plans)
-    padded = np.stack([np.concatenate([u, np.repeat(u[-1:], longest - len(u), 0)]) for u in plans])
+    plans, padded = plan_all(controller, references, u_limit)
     commands = cable_commands(padded, sim)
     plant = CablePlant(sim.robot, sim.gravity, gap)
     replayed = plant.replay(commands)

@@ -13,9 +13,7 @@ def tracking_rmse(achieved, reference, mask=None, axes=(0, 1, 2)) -> float:
     in 3D by default; ``axes=(1, 2)`` gives the y-z (tip-plane) error of the paper's burst test."""
     achieved, _ = as_real_array(achieved, "achieved", (None, 6))
     reference, _ = as_real_array(reference, "reference", (achieved.shape[0], 6))
-    mask = np.ones(len(achieved), bool) if mask is None else np.asarray(mask, bool)
-    if mask.shape != (len(achieved),) or not mask.any():
-        raise ValueError(f"mask must be a boolean array of shape ({len(achieved)},) with at least one True")
+    mask = _scored(mask, len(achieved))
     axes = list(axes)
     if not set(axes) <= {0, 1, 2} or not axes:
         raise ValueError(f"axes must be a non-empty subset of the position axes (0, 1, 2); got {axes}")
@@ -26,10 +24,15 @@ def tracking_rmse(achieved, reference, mask=None, axes=(0, 1, 2)) -> float:
 def peak_speed(states, mask=None) -> float:
     """Largest tip speed ||v|| (m/s) over the masked samples of a (T+1, 6) trajectory."""
     states, _ = as_real_array(states, "states", (None, 6))
-    mask = np.ones(len(states), bool) if mask is None else np.asarray(mask, bool)
-    if mask.shape != (len(states),) or not mask.any():
-        raise ValueError(f"mask must be a boolean array of shape ({len(states)},) with at least one True")
-    return float(np.linalg.norm(states[mask, 3:], axis=1).max())
+    return float(np.linalg.norm(states[_scored(mask, len(states)), 3:], axis=1).max())
+
+
+def _scored(mask, n: int) -> np.ndarray:
+    """The samples a metric scores: all n by default, else a boolean (n,) mask with one True at least."""
+    mask = np.ones(n, bool) if mask is None else np.asarray(mask, bool)
+    if mask.shape != (n,) or not mask.any():
+        raise ValueError(f"mask must be a boolean array of shape ({n},) with at least one True")
+    return mask
 
 
 def phase_lag(achieved, reference, dt: float, max_lag: float = 0.5) -> float:

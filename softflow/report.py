@@ -15,9 +15,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .control import table_rows
 from .profiles import REPO, Profile
 from .robots import HW_ROBOT
 
+COLUMNS = {"rmse_shape_mm": "shape_mm", "rmse_random_mm": "random_mm", "phase_lag_shape_s": "phase_lag_s",
+           "input_energy_random": "input_energy"}  # control.table_rows -> the paper's table headings
 MODELS = ["mlp", "lstm", "transformer", "rf", "rf-physical", "rf-fwd"]
 LABELS = {"mlp": "MLP", "lstm": "LSTM", "transformer": "Transformer", "rf": "RF", "rf-physical": "RF-Physical",
           "rf-fwd": "RF-FWD"}
@@ -58,17 +61,9 @@ def read_result(profile: Profile, name: str) -> pd.DataFrame:
     return pd.read_csv(path)
 
 
-def _table_rows(frame: pd.DataFrame) -> pd.DataFrame:
-    shapes, random = frame[frame.family == "shape"], frame[frame.family == "random"]
-    return pd.DataFrame({"shape_mm": shapes.groupby("model").rmse_mm.mean(),
-                         "random_mm": random.groupby("model").rmse_mm.mean(),
-                         "phase_lag_s": shapes.groupby("model").phase_lag_s.mean(),
-                         "input_energy": random.groupby("model").input_energy.mean()})
-
-
 def _ours(profile: Profile) -> pd.DataFrame:
     frame = pd.concat([read_result(profile, "results_baselines.csv"), read_result(profile, "results_rf.csv")])
-    return _table_rows(frame).reindex(MODELS)
+    return table_rows(frame).rename(columns=COLUMNS).reindex(MODELS)
 
 
 def table1(profile: Profile) -> pd.DataFrame:
