@@ -17,19 +17,23 @@ from .metrics import actuation_mae, input_energy, phase_lag, tracking_rmse
 from .profiles import REPO, Profile, get_profile
 from .robots import SIM_ROBOT, Robot
 from .sim import Simulator
-from .train import gather_windows, load_checkpoint, model_from_checkpoint, train
+from .train import gather_windows, load_checkpoint, model_from_checkpoint, resolved_kwargs, train
 
 SHIPPED = REPO / "checkpoints"  # paper-profile weights, committed
 TRAINED = REPO / "data" / "checkpoints"  # anything else, rebuilt on demand
 
 
-def checkpoint_path(name: str, profile: str, robot: Robot = SIM_ROBOT, gravity: str = "vertical") -> Path:
+def checkpoint_path(name: str, profile: str, robot: Robot = SIM_ROBOT, gravity: str = "vertical",
+                    model_kwargs: dict | None = None) -> Path:
     """Where model ``name`` of a profile lives; models of another rod or configuration (the
-    hardware twins) in a sub-folder named after them."""
+    hardware twins) in a sub-folder named after them, and variants with other constructor
+    arguments (a size sweep) in variants/, named after the arguments that differ."""
     folder = SHIPPED if profile == "paper" else TRAINED / profile
     if (robot, gravity) != (SIM_ROBOT, "vertical"):
         folder = folder / f"{robot.name}-{gravity}"
-    return folder / f"{name}.pt"
+    default, chosen = resolved_kwargs(name), resolved_kwargs(name, **(model_kwargs or {}))
+    changed = "-".join(f"{key}{value}" for key, value in chosen.items() if value != default[key])
+    return folder / "variants" / f"{name}-{changed}.pt" if changed else folder / f"{name}.pt"
 
 
 NOISE = ("zero", "seeded", "fresh")
@@ -88,12 +92,13 @@ class Controller:
 
 
 def ensure_trained(name: str, profile: Profile, dataset, robot: Robot = SIM_ROBOT, gravity: str = "vertical", *,
-                   progress: bool = False):
+                   model_kwargs: dict | None = None, progress: bool = False):
     """Train model ``name`` on ``dataset`` with the profile's budget for it, into the checkpoint
-    ``load_controller`` reads; a finished checkpoint of the same budget and data returns at once.
-    (A different budget would retrain and replace it: always go through here.)"""
-    return train(name, dataset, profile.train_config(name), checkpoint_path(name, profile.name, robot, gravity),
-                 progress=progress)
+    ``load_controller`` reads (``model_kwargs``: a variant, kept beside it); a finished checkpoint
+    of the same arguments, budget and data returns at once. (A different budget would retrain
+    and replace it: always go through here.)"""
+    path = checkpoint_path(name, profile.name, robot, gravity, model_kwargs)
+    return train(name, dataset, profile.train_config(name), path, model_kwargs=model_kwargs, progress=progress)
 
 
 def load_controller(name: str, profile: str = "paper", robot: Robot = SIM_ROBOT, gravity: str = "vertical") -> Controller:

@@ -3,6 +3,7 @@ validation every epoch, early stopping, atomic checkpoints that resume after an 
 from __future__ import annotations
 
 import copy
+import inspect
 import os
 import time
 from dataclasses import asdict
@@ -30,11 +31,22 @@ MODELS = {  # name -> (class, keyword arguments)
 }
 
 
-def build_model(name: str, **overrides) -> torch.nn.Module:
+def resolved_kwargs(name: str, **overrides) -> dict:
+    """Every constructor argument of model ``name``: its class defaults, then the registry's,
+    then ``overrides``. A checkpoint records these, so changing any default makes it stale."""
     if name not in MODELS:
         raise ValueError(f"model must be one of {sorted(MODELS)}; got {name!r}")
     cls, kwargs = MODELS[name]
-    return cls(**{**kwargs, **overrides})
+    try:
+        arguments = inspect.signature(cls).bind(**{**kwargs, **overrides})
+    except TypeError as error:
+        raise ValueError(f"bad arguments for model {name!r}: {error}") from error
+    arguments.apply_defaults()
+    return dict(arguments.arguments)
+
+
+def build_model(name: str, **overrides) -> torch.nn.Module:
+    return MODELS[name][0](**resolved_kwargs(name, **overrides))
 
 
 def gather_windows(states: np.ndarray, episodes, steps, context: int) -> np.ndarray:
@@ -131,7 +143,7 @@ def train(name: str, dataset: Dataset, config: TrainConfig, path: Path, *, model
     checkpoint with the same configuration is returned without training.
     """
     with one_thread():
-        return _train(name, dataset, config, Path(path), dict(model_kwargs or {}), progress)
+        return _train(name, dataset, config, Path(path), resolved_kwargs(name, **(model_kwargs or {})), progress)
 
 
 def _train(name: str, dataset: Dataset, config: TrainConfig, path: Path, model_kwargs: dict, progress: bool):

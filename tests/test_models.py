@@ -1,4 +1,6 @@
 """Inverse models, the shared training loop and open-loop control."""
+import dataclasses
+
 import numpy as np
 import pytest
 import torch
@@ -62,6 +64,33 @@ def test_an_interrupted_run_resumes_to_the_same_weights(dataset, tmp_path, monke
     resumed, _ = train.train("mlp", dataset, QUICK, tmp_path / "resumed.pt", progress=False)
     for a, b in zip(reference.state_dict().values(), resumed.state_dict().values()):
         torch.testing.assert_close(a, b)
+
+
+def test_a_changed_default_retrains_instead_of_reusing_the_checkpoint(dataset, tmp_path, monkeypatch):
+    """The checkpoint records every constructor argument, registry and class defaults
+    included, so a new default cannot silently reuse weights trained with the old one."""
+    path = tmp_path / "mlp.pt"
+    _, first = train.train("mlp", dataset, QUICK, path, progress=False)
+    assert first["model_kwargs"] == {"hidden": 256, "layers": 3}
+    stamp = path.stat().st_mtime_ns
+    train.train("mlp", dataset, QUICK, path, progress=False)
+    assert path.stat().st_mtime_ns == stamp  # same arguments: reused
+    monkeypatch.setitem(train.MODELS, "mlp", (train.InverseMLP, {"hidden": 32}))
+    model, second = train.train("mlp", dataset, QUICK, path, progress=False)
+    assert second["model_kwargs"] == {"hidden": 32, "layers": 3} and model.net[0].out_features == 32
+
+
+def test_a_size_variant_trains_beside_the_default_model(dataset, tmp_path, monkeypatch):
+    monkeypatch.setattr(control, "TRAINED", tmp_path)
+    profile = dataclasses.replace(SMALL, train=QUICK)
+    _, variant = control.ensure_trained("mlp", profile, dataset, model_kwargs={"hidden": 32})
+    assert (tmp_path / "small" / "variants" / "mlp-hidden32.pt").exists() and variant["model_kwargs"]["hidden"] == 32
+    assert control.checkpoint_path("mlp", "small", model_kwargs={"hidden": 256}) == tmp_path / "small" / "mlp.pt"
+
+
+def test_unknown_model_arguments_are_a_value_error():
+    with pytest.raises(ValueError, match="bad arguments for model 'rf'"):
+        train.build_model("rf", width=3)
 
 
 def test_a_corrupt_checkpoint_is_reported_by_path(tmp_path):

@@ -22,7 +22,7 @@ class RectifiedFlow(InverseModel):
     """The velocity field and its sampler. ``prior``: gravity configuration of the static
     prior (RF-Physical), or None. ``consistency``: lambda_cons of RF-FWD (0 for RF)."""
 
-    def __init__(self, hidden: int = 256, layers: int = 3, steps: int = 4, tau_sampling: str = "uniform",
+    def __init__(self, hidden: int = 256, layers: int = 3, steps: int = 4, tau_sampling: str = "logit-normal",
                  prior: str | None = None, consistency: float = 0.0):
         super().__init__()
         if tau_sampling not in ("uniform", "logit-normal"):
