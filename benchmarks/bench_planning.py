@@ -10,20 +10,17 @@ Writes benchmarks/results/planning.json and prints a summary.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 import torch
 
-from softflow import control, data, metrics, train
+from results_file import write_results
+from softflow import control, data, metrics
 from softflow.models.common import one_thread
 from softflow.models.flow import LeanFlow
 from softflow.profiles import get_profile
-
-HERE = Path(__file__).resolve().parent
 
 
 def main():
@@ -34,7 +31,7 @@ def main():
     args = parser.parse_args()
     profile = get_profile(args.profile)
     dataset = data.load_dataset(profile, progress=False)
-    model, _ = train.train(args.model, dataset, profile.train, control.checkpoint_path(args.model, profile.name))
+    model, _ = control.ensure_trained(args.model, profile, dataset)  # the shipped model, or trained with its budget
     lean = LeanFlow(model)
     window = dataset.states[dataset.test[0], 100:102][None]  # one transition (1, 2, 6)
     z = np.zeros((1, 2))
@@ -59,9 +56,7 @@ def main():
         times.append(time.perf_counter() - start)
     results["trajectory_500_steps_ms"] = 1e3 * float(np.median(times))
     print(f"whole 500-step trajectory in one batched call (N={model.steps}): {results['trajectory_500_steps_ms']:.1f} ms")
-    out = HERE / "results"
-    out.mkdir(exist_ok=True)
-    (out / "planning.json").write_text(json.dumps(results, indent=2))
+    write_results("planning", results)
     return 0
 
 

@@ -11,7 +11,6 @@ Writes benchmarks/results/simulator.json and prints a summary.
 from __future__ import annotations
 
 import argparse
-import json
 import platform
 import subprocess
 import sys
@@ -21,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from results_file import write_results
 from softflow.data import DT, polynomial_excitation
 from softflow.robots import SIM_ROBOT
 from softflow.sim import Simulator
@@ -89,9 +89,7 @@ def main():
               f"{e['speedup_single']:.0f}x / {e['speedup_batched']:.0f}x")
         print(f"tip difference: max {e['max_tip_difference_mm']:.2f} mm ({e['max_tip_difference_percent_L']:.2f} % of L), "
               f"RMS {e['rms_tip_difference_mm']:.2f} mm")
-    out = HERE / "results"
-    out.mkdir(exist_ok=True)
-    (out / "simulator.json").write_text(json.dumps(results, indent=2))
+    write_results("simulator", results)
     return 0
 
 
