@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from scipy.optimize import brentq
 
 from . import vision
 from .cables import cable_actuation, cable_displacements, cable_tensions
@@ -86,6 +87,27 @@ NO_GAP = RealityGap()
 # a few tenths of a millimetre of slack, D435-like depth and colour noise.
 TYPICAL_GAP = RealityGap(youngs_modulus=-0.15, damping=0.20, density=0.10, motor_lag=0.02, slack=3e-4,
                          depth_noise=1e-3, pixel_noise=3.0)
+
+
+def calibrate_sag(robot: Robot, rest_tip, gravity: str = "horizontal") -> Robot:
+    """The rod with its Young's modulus rescaled so that its unactuated equilibrium tip sags
+    as far as a measured one (``rest_tip`` (3,), m, robot frame): the first thing to do with a
+    real rod, since the sag (rho A g L^3 / 8 EI in small deflection) decides where every
+    shape is reached. Statics identify only rho / E, so E carries the whole correction."""
+    rest_tip, _ = as_real_array(rest_tip, "rest_tip", (3,))
+    straight = np.array([robot.length, 0.0, 0.0])
+    measured = np.linalg.norm(rest_tip - straight)
+
+    def sag(log_scale):
+        scaled = replace(robot, youngs_modulus=robot.youngs_modulus * np.exp(log_scale))
+        return np.linalg.norm(Simulator(scaled, gravity=gravity).static_tip(np.zeros((1, 2)))[0] - straight)
+
+    low, high = np.log(0.1), np.log(10.0)
+    if not sag(high) <= measured <= sag(low):
+        raise ValueError(f"a rest sag of {1e3 * measured:.1f} mm is outside what E x 0.1 .. 10 gives "
+                         f"({1e3 * sag(high):.1f} .. {1e3 * sag(low):.1f} mm); check rest_tip is in metres, robot frame")
+    log_scale = brentq(lambda x: sag(x) - measured, low, high, xtol=1e-10)
+    return replace(robot, youngs_modulus=robot.youngs_modulus * np.exp(log_scale))
 
 
 def cable_commands(u, sim: Simulator, stiffness: float = CABLE_STIFFNESS, pretension: float = PRETENSION):

@@ -31,7 +31,8 @@ SOURCES = {
     "results_rf.csv": "04_rf_variants.ipynb", "training_rf.csv": "04_rf_variants.ipynb",
     "euler_sweep.csv": "04_rf_variants.ipynb", "stress_burst.csv": "05_stress_tests.ipynb",
     "stress_complex3d.csv": "05_stress_tests.ipynb", "table3_twin.csv": "06_hardware_replay.ipynb",
-    "twin_results.csv": "06_hardware_replay.ipynb",
+    "twin_results.csv": "06_hardware_replay.ipynb", "baseline_sizes.csv": "03_baselines.ipynb",
+    "design_sweep.csv": "04_rf_variants.ipynb",
 }
 
 # The paper's numbers (Tables I-IV of the paper in ../shared/paper).
@@ -205,6 +206,17 @@ def claims(profile: Profile) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=["claim", "paper", "ours", "most likely reason for a gap"]).set_index("claim")
 
 
+def design_choices(profile: Profile) -> list[str]:
+    """The sweeps behind the defaults: baseline sizes (notebook 03), RF design at the short budget (04)."""
+    sizes = read_result(profile, "baseline_sizes.csv").set_index("model")[["size", "parameters", "rmse_shape_mm",
+                                                                              "rmse_random_mm", "epochs"]]
+    design = read_result(profile, "design_sweep.csv")
+    design = design.set_index(design.columns[0]).rename_axis("variant")  # the CSV's index column
+    return ["## Design choices", "", "Baseline sizes, each with its model's full budget (notebook 03; the middle size is "
+            "the default):", "", markdown(sizes), "", "RF design sweep, every variant at the short budget (the sequence models') "
+            "(notebook 04; logit-normal tau and lambda = 1 are the defaults):", "", markdown(design), ""]
+
+
 def _relative(lower_pct: float) -> str:
     return f"{abs(lower_pct):.0f} % {'lower' if lower_pct >= 0 else 'higher'}"
 
@@ -228,8 +240,9 @@ def results_page(profile: Profile, tables: dict, run_dir: Path) -> str:
               "table4_literature": "Table IV - comparison with the literature"}
     for name, title in titles.items():
         lines += [f"## {title}", "", tables[name], ""]
-    lines += ["## The paper's claims, reproduced or not", "", markdown(claims(profile)), "",
-              "## Key figures", ""]
+    lines += ["## The paper's claims, reproduced or not", "", markdown(claims(profile)), ""]
+    lines += design_choices(profile)
+    lines += ["## Key figures", ""]
     lines += [f"### {caption}\n\n![{caption}](../figures/{name})\n" for caption, name in FIGURES
               if (profile.output_dir / name).exists()]
     return "\n".join(lines).rstrip() + "\n"

@@ -91,3 +91,16 @@ def test_recordings_load_from_a_marker_csv_and_from_rgbd_frames(tmp_path):
     vision.write_rgbd(tmp_path / "run.npz", times, vision.render(tips, camera, 0, centerlines=centerlines), camera)
     _, tracked = hardware.load_recording(tmp_path / "run.npz")
     assert np.sqrt(np.mean(np.sum((tracked - tips) ** 2, axis=1))) < 1e-3
+
+
+def test_sag_calibration_recovers_the_plants_rho_over_e():
+    """A plant with E -15 % and rho +10 %: statics see only rho / E, so the calibrated rod's
+    E is nominal x 0.85 / 1.10 and its rest tip matches the plant's."""
+    plant = hardware.TYPICAL_GAP.plant_robot(HW_ROBOT)
+    rest_tip = Simulator(plant, gravity="horizontal").static_tip(np.zeros((1, 2)))[0]
+    calibrated = hardware.calibrate_sag(HW_ROBOT, rest_tip)
+    assert calibrated.youngs_modulus / HW_ROBOT.youngs_modulus == pytest.approx(0.85 / 1.10, rel=1e-4)
+    tip = Simulator(calibrated, gravity="horizontal").static_tip(np.zeros((1, 2)))[0]
+    assert np.linalg.norm(tip - rest_tip) < 1e-4  # within 0.1 mm
+    with pytest.raises(ValueError, match="metres"):
+        hardware.calibrate_sag(HW_ROBOT, 1e3 * rest_tip)  # millimetres by mistake
