@@ -187,7 +187,7 @@ def claims(profile: Profile) -> pd.DataFrame:
     latency = read_result(profile, "euler_sweep.csv").set_index("steps").latency_ms.loc[4]
     rows = [
         ("Best RF variant against the best baseline (shapes / random)", "> 50 % lower / > 50 % lower",
-         f"{_relative(margin.shape_mm)} / {_relative(margin.random_mm)}",
+         f"{relative(margin.shape_mm)} / {relative(margin.random_mm)}",
          "our GVS simulator and references are easier for every model (sub-mm to few-mm errors); the regressions are "
          "already near the simulator's open-loop floor, so there is no 50 % left to gain"),
         ("RF-FWD RMSE, shapes / random (mm)", "5.0 / 3.5", f"{ours.loc['rf-fwd', 'shape_mm']:.2f} / "
@@ -217,7 +217,8 @@ def design_choices(profile: Profile) -> list[str]:
             "(notebook 04; logit-normal tau and lambda = 1 are the defaults):", "", markdown(design), ""]
 
 
-def _relative(lower_pct: float) -> str:
+def relative(lower_pct: float) -> str:
+    """A reduction in percent as words: 12 -> '12 % lower', -5 -> '5 % higher'."""
     return f"{abs(lower_pct):.0f} % {'lower' if lower_pct >= 0 else 'higher'}"
 
 
