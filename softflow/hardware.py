@@ -98,16 +98,18 @@ def calibrate_sag(robot: Robot, rest_tip, gravity: str = "horizontal") -> Robot:
     straight = np.array([robot.length, 0.0, 0.0])
     measured = np.linalg.norm(rest_tip - straight)
 
+    def scaled(log_scale):
+        return replace(robot, youngs_modulus=robot.youngs_modulus * np.exp(log_scale))
+
     def sag(log_scale):
-        scaled = replace(robot, youngs_modulus=robot.youngs_modulus * np.exp(log_scale))
-        return np.linalg.norm(Simulator(scaled, gravity=gravity).static_tip(np.zeros((1, 2)))[0] - straight)
+        return np.linalg.norm(Simulator(scaled(log_scale), gravity=gravity).static_tip(np.zeros((1, 2)))[0] - straight)
 
     low, high = np.log(0.1), np.log(10.0)
-    if not sag(high) <= measured <= sag(low):
+    softest, stiffest = sag(low), sag(high)
+    if not stiffest <= measured <= softest:
         raise ValueError(f"a rest sag of {1e3 * measured:.1f} mm is outside what E x 0.1 .. 10 gives "
-                         f"({1e3 * sag(high):.1f} .. {1e3 * sag(low):.1f} mm); check rest_tip is in metres, robot frame")
-    log_scale = brentq(lambda x: sag(x) - measured, low, high, xtol=1e-10)
-    return replace(robot, youngs_modulus=robot.youngs_modulus * np.exp(log_scale))
+                         f"({1e3 * stiffest:.1f} .. {1e3 * softest:.1f} mm); check rest_tip is in metres, robot frame")
+    return scaled(brentq(lambda x: sag(x) - measured, low, high, xtol=1e-10))
 
 
 def cable_commands(u, sim: Simulator, stiffness: float = CABLE_STIFFNESS, pretension: float = PRETENSION):
