@@ -17,7 +17,7 @@ import numpy as np
 import torch
 
 from results_file import write_results
-from softflow import control, data, metrics
+from softflow import control, data, metrics, train
 from softflow.models.common import one_thread
 from softflow.models.flow import LeanFlow
 from softflow.profiles import get_profile
@@ -31,7 +31,7 @@ def main():
     args = parser.parse_args()
     profile = get_profile(args.profile)
     dataset = data.load_dataset(profile, progress=False)
-    model, _ = control.ensure_trained(args.model, profile, dataset)  # the shipped model, or trained with its budget
+    model, _ = train.ensure_trained(args.model, profile, dataset)  # the shipped model, or trained with its budget
     lean = LeanFlow(model)
     window = dataset.states[dataset.test[0], 100:102][None]  # one transition (1, 2, 6)
     z = np.zeros((1, 2))

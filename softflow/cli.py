@@ -3,13 +3,17 @@
   python -m softflow data  --profile paper              generate (or verify) the dataset
   python -m softflow train --profile paper mlp rf-fwd   train models into their checkpoints
   python -m softflow train --robot hw --gravity horizontal rf-fwd   a hardware-twin model
+  python -m softflow train --profile paper --ship rf-fwd   retrain a shipped model into checkpoints/
+
+Trained models go to data/checkpoints/ (git-ignored); only --ship writes checkpoints/.
 """
 from __future__ import annotations
 
 import argparse
 import time
 
-from . import control, data, train
+from . import data, train
+from .models import MODELS
 from .profiles import PROFILES, get_profile
 from .robots import ROBOTS
 
@@ -18,14 +22,16 @@ def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m softflow", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("command", choices=["data", "train"])
-    parser.add_argument("models", nargs="*", metavar="model", help=f"models to train: {', '.join(sorted(train.MODELS))}")
+    parser.add_argument("models", nargs="*", metavar="model", help=f"models to train: {', '.join(sorted(MODELS))}")
     parser.add_argument("--profile", default="paper", choices=sorted(PROFILES))
     parser.add_argument("--robot", default="sim", choices=sorted(ROBOTS))
     parser.add_argument("--gravity", default="vertical", choices=["vertical", "horizontal"])
+    parser.add_argument("--ship", action="store_true",
+                        help="write the paper-profile checkpoints committed in checkpoints/ (maintainers only)")
     args = parser.parse_intermixed_args(argv)
-    unknown = sorted(set(args.models) - set(train.MODELS))
+    unknown = sorted(set(args.models) - set(MODELS))
     if unknown:
-        parser.error(f"unknown model(s) {unknown}; choose from {sorted(train.MODELS)}")
+        parser.error(f"unknown model(s) {unknown}; choose from {sorted(MODELS)}")
     profile = get_profile(args.profile)
     start = time.perf_counter()
     robot = ROBOTS[args.robot]
@@ -33,7 +39,7 @@ def main(argv=None):
     print(f"dataset {dataset.key}: {dataset.u.shape[0]} episodes ({time.perf_counter() - start:.0f} s)")
     if args.command == "train":
         for name in args.models:
-            _, checkpoint = control.ensure_trained(name, profile, dataset, robot, args.gravity, progress=True)
+            _, checkpoint = train.ensure_trained(name, profile, dataset, robot, args.gravity, ship=args.ship, progress=True)
             print(f"{name}: {checkpoint['epochs_run']} epochs, best validation loss {checkpoint['best_val']:.4f}, "
                   f"{checkpoint['wall_seconds'] / 60:.1f} min of training")
 

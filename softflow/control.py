@@ -3,40 +3,30 @@ run the plan in the simulator from rest, and score it."""
 from __future__ import annotations
 
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import torch
 
 from .checks import as_real_array, check_choice
-from .data import DT, U_MAX, dataset_path
+from .data import DT, U_MAX
+from .metrics import actuation_mae, input_energy, phase_lag, tracking_rmse
 from .models.common import one_thread
 from .models.flow import RectifiedFlow
-from .metrics import actuation_mae, input_energy, phase_lag, tracking_rmse
-from .profiles import REPO, Profile, get_profile
 from .robots import SIM_ROBOT, Robot
 from .sim import Simulator
-from .train import gather_windows, load_checkpoint, model_from_checkpoint, resolved_kwargs, train
-
-SHIPPED = REPO / "checkpoints"  # paper-profile weights, committed
-TRAINED = REPO / "data" / "checkpoints"  # anything else, rebuilt on demand
-
-
-def checkpoint_path(name: str, profile: str, robot: Robot = SIM_ROBOT, gravity: str = "vertical",
-                    model_kwargs: dict | None = None) -> Path:
-    """Where model ``name`` of a profile lives; models of another rod or configuration (the
-    hardware twins) in a sub-folder named after them, and variants with other constructor
-    arguments (a size sweep) in variants/, named after the arguments that differ."""
-    folder = SHIPPED if profile == "paper" else TRAINED / profile
-    if (robot, gravity) != (SIM_ROBOT, "vertical"):
-        folder = folder / f"{robot.name}-{gravity}"
-    default, chosen = resolved_kwargs(name), resolved_kwargs(name, **(model_kwargs or {}))
-    changed = "-".join(f"{key}{value}" for key, value in chosen.items() if value != default[key])
-    return folder / "variants" / f"{name}-{changed}.pt" if changed else folder / f"{name}.pt"
-
+from .train import find_checkpoint, gather_windows, load_checkpoint, model_from_checkpoint
 
 NOISE = ("zero", "seeded", "fresh")
+# A reference tip position farther than this many training standard deviations from the
+# training mean, on any axis, is refused: millimetres for metres, or another rod's
+# references. The paper's references (shapes, random, burst, complex 3D) reach at most 5.4,
+# the simulation rod's references on a hardware-twin model 11 to 61 (docs/assumptions.md).
+WORKSPACE_MARGIN = 8.0
+
+
+class SaturationWarning(UserWarning):
+    """A plan asked for more than the actuator range and was clipped."""
 
 
 class Controller:
@@ -45,43 +35,91 @@ class Controller:
     A generative model starts every step from noise z: by default z = 0, the centre of the
     noise, which plans like the mean of many draws (notebook 05) and is deterministic;
     ``noise="seeded"`` draws one z per trajectory from ``seed`` and uses it at every step,
-    ``noise="fresh"`` draws a new z for every step; ``sample`` gives independent draws."""
+    ``noise="fresh"`` draws a new z for every step; ``sample`` gives independent draws.
+    ``robot`` and ``gravity``: the rod the model was trained for (RF-Physical's prior is
+    its statics, tabulated once per controller)."""
 
-    def __init__(self, model: torch.nn.Module, name: str, seed: int = 0):
+    def __init__(self, model: torch.nn.Module, name: str, seed: int = 0, *, robot: Robot = SIM_ROBOT,
+                 gravity: str = "vertical"):
         self.model, self.name, self.seed = model.eval(), name, seed
         self.generative = isinstance(model, RectifiedFlow)
+        self.statics = Simulator(robot, gravity).static_table() if model.needs_statics else None
 
     def plan(self, reference, *, noise: str = "zero", seed: int | None = None, n_samples: int = 1,
              **options) -> np.ndarray:
         """(T+1, 6) or (B, T+1, 6) reference -> (T, 2) or (B, T, 2) actuation (N), every
         step predicted in one batched call (the plan depends on the reference only).
         ``n_samples`` > 1 plans with the mean of that many noise draws: a Monte-Carlo
-        estimate of E[u | x_t, x_t+1], the plan of least squared actuation error."""
+        estimate of E[u | x_t, x_t+1], the plan of least squared actuation error.
+
+        Options: ``steps`` (Euler steps of a flow, >= 1). u beyond the actuator range
+        [-U_MAX, U_MAX] is clipped, with a ``SaturationWarning`` that counts the samples."""
         check_choice(noise, "noise", NOISE)
+        if not (isinstance(n_samples, int) and n_samples >= 1):
+            raise ValueError(f"n_samples must be a positive integer; got {n_samples!r}")
         if n_samples == 1:
-            return self._plan(reference, noise, seed, options)
-        if noise == "zero":
+            u = self._plan(reference, noise, seed, options)
+        elif noise == "zero":
             raise ValueError("n_samples > 1 averages random draws: use noise='seeded' or 'fresh'")
-        return self.sample(reference, n_samples, noise=noise, seed=seed, **options).mean(0)
+        else:
+            u = self.sample(reference, n_samples, noise=noise, seed=seed, **options).mean(0)
+        clipped = int(np.sum(np.abs(u) > U_MAX))
+        if clipped:
+            warnings.warn(f"{self.name}: {clipped} of {u.size} planned u values exceed the actuator range "
+                          f"+-{U_MAX} N and were clipped", SaturationWarning, stacklevel=2)
+        return np.clip(u, -U_MAX, U_MAX)
 
     def sample(self, reference, n: int, *, noise: str = "seeded", seed: int | None = None, **options) -> np.ndarray:
-        """``n`` plans from independent noise draws: (n, T, 2) or (n, B, T, 2). Their spread is
-        the flow's own uncertainty about the actuation; a regression returns n equal plans."""
+        """``n`` plans from independent noise draws: (n, T, 2) or (n, B, T, 2), not clipped.
+        Their spread is the flow's own uncertainty about the actuation (a regression model
+        has none: ValueError)."""
         if not (isinstance(n, int) and n >= 1):
             raise ValueError(f"n must be a positive integer; got {n!r}")
         check_choice(noise, "noise", NOISE[1:])
+        if not self.generative:
+            raise ValueError(f"{self.name} is a regression model: it has no noise to sample")
         X, unbatched = as_real_array(reference, "reference", (None, None, 6), allow_unbatched=True)
         u = self._plan(np.tile(X, (n, 1, 1)), noise, seed, options).reshape(n, len(X), -1, 2)
         return u[:, 0] if unbatched else u
 
+    def _check_options(self, noise, options):
+        if not self.generative:
+            if noise != "zero" or options:
+                raise ValueError(f"{self.name} is a regression model: it takes no noise or step options; "
+                                 f"got noise={noise!r}, options {sorted(options)}")
+            return
+        unknown = set(options) - {"steps"}
+        if unknown:
+            raise ValueError(f"unknown plan options {sorted(unknown)}; a flow takes steps=N")
+        steps = options.get("steps")
+        if steps is not None and not (isinstance(steps, (int, np.integer)) and steps >= 1):
+            raise ValueError(f"steps must be a positive integer; got {steps!r}")
+
+    def _check_workspace(self, X):
+        """Refuse references far outside the training states (unit mistakes, another rod)."""
+        mean, std = (b.numpy().astype(np.float64) for b in (self.model.state_norm.mean, self.model.state_norm.std))
+        score = np.abs(X[..., :3] - mean[:3]) / std[:3]
+        worst = np.unravel_index(np.argmax(score), score.shape)
+        if score[worst] > WORKSPACE_MARGIN:
+            *where, axis = worst
+            raise ValueError(f"reference tip position {'xyz'[axis]} = {X[(*where, axis)]:.4g} m at index "
+                             f"{tuple(int(i) for i in where)} is {score[worst]:.0f} training standard deviations from "
+                             f"the training mean {mean[axis]:.3f} m (at most {WORKSPACE_MARGIN:g}): is it in metres, "
+                             f"and for the rod this model was trained on?")
+
     def _plan(self, reference, noise, seed, options) -> np.ndarray:
+        self._check_options(noise, options)
         X, unbatched = as_real_array(reference, "reference", (None, None, 6), allow_unbatched=True)
         B, T = X.shape[0], X.shape[1] - 1
+        if B == 0:
+            raise ValueError("reference must hold at least one trajectory (its batch axis is empty)")
         if T < 1:
             raise ValueError("reference must have at least 2 samples")
+        self._check_workspace(X)
         episodes, steps = np.repeat(np.arange(B), T), np.tile(np.arange(T), B)
         windows = torch.as_tensor(gather_windows(X, episodes, steps, self.model.context), dtype=torch.float32)
-        extras = {k: torch.as_tensor(v.reshape(B * T, -1), dtype=torch.float32) for k, v in self.model.extras(X).items()}
+        extras = {k: torch.as_tensor(v.reshape(B * T, -1), dtype=torch.float32)
+                  for k, v in self.model.extras(X, self.statics).items()}
         if self.generative:
             generator = torch.Generator().manual_seed(self.seed if seed is None else seed)
             z = torch.randn((B, T if noise == "fresh" else 1, 2), generator=generator)
@@ -91,39 +129,28 @@ class Controller:
         return u[0] if unbatched else u
 
 
-def ensure_trained(name: str, profile: Profile, dataset, robot: Robot = SIM_ROBOT, gravity: str = "vertical", *,
-                   model_kwargs: dict | None = None, progress: bool = False):
-    """Train model ``name`` on ``dataset`` with the profile's budget for it, into the checkpoint
-    ``load_controller`` reads (``model_kwargs``: a variant, kept beside it); a finished checkpoint
-    of the same arguments, budget and data returns at once. (A different budget would retrain
-    and replace it: always go through here.)"""
-    path = checkpoint_path(name, profile.name, robot, gravity, model_kwargs)
-    return train(name, dataset, profile.train_config(name), path, model_kwargs=model_kwargs, progress=progress)
-
-
 def load_controller(name: str, profile: str = "paper", robot: Robot = SIM_ROBOT, gravity: str = "vertical") -> Controller:
     """The trained model ``name`` ("mlp", "lstm", "transformer", ...) of a profile, for the rod
     and configuration it was trained on; paper-profile weights ship with the repository, so
-    this works right after a clone."""
-    path = checkpoint_path(name, profile, robot, gravity)
-    if not path.exists():
-        raise ValueError(f"no trained {name!r} for profile {profile!r} at {path}; "
-                         f"rebuild it with: PROFILE={profile} make reproduce  (or run the notebook that trains it)")
-    checkpoint = load_checkpoint(path)
-    if "data_key" in checkpoint and checkpoint["data_key"] != expected_data_key(profile, robot, gravity):
-        warnings.warn(f"{path} was trained on another dataset or simulator version; "
-                      f"rebuild it with: PROFILE={profile} make reproduce", stacklevel=2)
-    return Controller(model_from_checkpoint(checkpoint, path), name)
-
-
-def expected_data_key(profile: str, robot: Robot = SIM_ROBOT, gravity: str = "vertical") -> str:
-    return dataset_path(get_profile(profile), robot, gravity).stem
+    this works right after a clone. A model you trained yourself (data/checkpoints/) is
+    preferred when it is current; a stale one is used with a warning."""
+    path, current = find_checkpoint(name, profile, robot, gravity)
+    if path is None:
+        raise ValueError(f"no trained {name!r} for profile {profile!r} and rod {robot.name!r} / {gravity!r}; "
+                         f"train it with: python -m softflow train --profile {profile} {name}")
+    if not current:
+        warnings.warn(f"{path} was trained with other arguments, budget, data or simulator version; "
+                      f"retrain it with: python -m softflow train --profile {profile} {name}", stacklevel=2)
+    return Controller(model_from_checkpoint(load_checkpoint(path), path), name, robot=robot, gravity=gravity)
 
 
 def plan_all(controller, references, u_limit: float = U_MAX, **plan_options):
-    """Plan every reference and clip to the actuator range: the plans, and the same stacked
-    (R, T_max, 2) with shorter plans padded by holding their last u, ready for one batched run."""
-    plans = [np.clip(controller.plan(r.states, **plan_options), -u_limit, u_limit) for r in references]
+    """Plan every reference and clip to ``u_limit``: the plans, and the same stacked
+    (R, T_max, 2) with shorter plans padded by holding their last u, ready for one batched run.
+    Saturation is part of what an evaluation measures, so it is not warned about here."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SaturationWarning)
+        plans = [np.clip(controller.plan(r.states, **plan_options), -u_limit, u_limit) for r in references]
     longest = max(len(u) for u in plans)
     return plans, np.stack([np.concatenate([u, np.repeat(u[-1:], longest - len(u), 0)]) for u in plans])
 
@@ -147,15 +174,3 @@ def evaluate(controller, references, sim: Simulator, u_limit: float = U_MAX, **p
         rows.append(row)
         runs[r.name] = dict(u=u, states=X)
     return pd.DataFrame(rows), runs
-
-
-def table_rows(results: pd.DataFrame) -> pd.DataFrame:
-    """Per model: Table I (RMSE mean over shapes / random) and Table II (phase lag on shapes,
-    input energy on random references)."""
-    shapes, random = results[results.family == "shape"], results[results.family == "random"]
-    return pd.DataFrame({
-        "rmse_shape_mm": shapes.groupby("model").rmse_mm.mean(),
-        "rmse_random_mm": random.groupby("model").rmse_mm.mean(),
-        "phase_lag_shape_s": shapes.groupby("model").phase_lag_s.mean(),
-        "input_energy_random": random.groupby("model").input_energy.mean(),
-    })

@@ -2,31 +2,28 @@
 
 The paper trains on 3000 episodes of random polynomial actuation, 5 s each at 0.01 s.
 Episodes are stored whole (u and the 6D tip states); training tuples are views on
-them, and the context windows of sequence models are gathered per batch, never copied whole. The cache file name is a hash of everything that made it,
-so a change of profile, robot or simulator code rebuilds it, and a corrupt or
-partial file is detected and rebuilt, never used.
+them, and the context windows of sequence models are gathered per batch, never copied
+whole. The cache file is named by a content key of everything that made it (the
+profile's data fields, the simulator's numbers and DATA_VERSION), so a change of any
+rebuilds it, a comment edit rebuilds nothing, and a corrupt or partial file is detected
+and rebuilt, never used.
 """
 from __future__ import annotations
 
-import hashlib
-import inspect
-import json
-import os
-import zipfile
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from numpy.polynomial import legendre
 
-from . import sim as sim_module
-from .profiles import REPO, Profile
+from .profiles import DATA_DIR, Profile
 from .robots import SIM_ROBOT, Robot
 from .sim import Simulator
+from .store import cache_file, read_npz, write_npz
 
 U_MAX = 4.0  # N, actuation range [-U_MAX, U_MAX] of each differential tension
 DT = 0.01  # s, sampling interval
-DATA_DIR = REPO / "data"
+DATA_VERSION = 1  # bump when the excitation, the split or the stored arrays change
 BLOCK_EPISODES = 500  # episodes simulated and saved together: the unit of resumption
 
 
@@ -80,7 +77,8 @@ def mixed_excitation(n_episodes: int, n_steps: int, seed: int, u_max: float = 3.
 # ---------------------------------------------------------------------------- the dataset
 @dataclass(frozen=True)
 class Dataset:
-    """Whole episodes: u (E, T, 2), states (E, T+1, 6), and an episode split."""
+    """Whole episodes: u (E, T, 2), states (E, T+1, 6), an episode split, and the rod and
+    gravity that made them (RF-Physical's prior is that rod's statics)."""
 
     u: np.ndarray
     states: np.ndarray
@@ -88,6 +86,8 @@ class Dataset:
     val: np.ndarray
     test: np.ndarray
     key: str = ""  # cache file stem: names the exact data a model was trained on
+    robot: Robot = SIM_ROBOT
+    gravity: str = "vertical"
 
     @property
     def n_transitions(self) -> int:
@@ -106,37 +106,11 @@ def split_episodes(n_episodes: int, seed: int, fractions=(0.8, 0.1)):
     return np.sort(order[:n_train]), np.sort(order[n_train:n_train + n_val]), np.sort(order[n_train + n_val:])
 
 
-def cache_path(kind: str, spec: dict, modules, data_dir: Path = DATA_DIR) -> Path:
-    """data/<kind>-<hash>.npz, the hash taken over ``spec`` (JSON) and the source of ``modules``."""
-    source = "".join(inspect.getsource(module) for module in modules)
-    digest = hashlib.sha256((json.dumps(spec, sort_keys=True, default=str) + source).encode()).hexdigest()[:16]
-    Path(data_dir).mkdir(parents=True, exist_ok=True)
-    return Path(data_dir) / f"{kind}-{digest}.npz"
-
-
-def read_npz(path: Path) -> dict | None:
-    """All arrays of an npz file, or None when it is missing, truncated or corrupt (zip CRC)."""
-    try:
-        with np.load(path) as f:
-            return {k: f[k] for k in f.files}
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile):
-        return None
-
-
-def write_npz_atomic(path: Path, **arrays):
-    """Write an npz next to its destination, then rename: readers never see half a file."""
-    tmp = path.with_name(path.name + f".tmp{os.getpid()}")
-    with open(tmp, "wb") as f:
-        np.savez(f, **arrays)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
-
-
-def _dataset_from(arrays: dict | None, key: str) -> Dataset | None:
+def _dataset_from(arrays: dict | None, key: str, robot: Robot, gravity: str) -> Dataset | None:
     """A Dataset from cached arrays, or None when any is missing or inconsistent."""
     try:
-        data = Dataset(**{k: arrays[k] for k in ("u", "states", "train", "val", "test")}, key=key)
+        data = Dataset(**{k: arrays[k] for k in ("u", "states", "train", "val", "test")}, key=key, robot=robot,
+                       gravity=gravity)
     except (KeyError, TypeError):
         return None
     E, T, _ = data.u.shape
@@ -146,9 +120,10 @@ def _dataset_from(arrays: dict | None, key: str) -> Dataset | None:
 
 
 def dataset_path(profile: Profile, robot: Robot = SIM_ROBOT, gravity: str = "vertical", data_dir: Path = DATA_DIR) -> Path:
-    """Where the profile's dataset is cached; the name changes with anything that made it."""
-    spec = dict(profile=profile.name, **profile.data_spec, robot=asdict(robot), gravity=gravity)
-    return cache_path(f"dataset-{profile.name}", spec, (sim_module, inspect.getmodule(dataset_path)), data_dir)
+    """Where the profile's dataset is cached; the name changes with any number that made it
+    (the rod's parameters, not its name)."""
+    spec = dict(**profile.data_spec, simulator=Simulator(robot, gravity=gravity).spec(), version=DATA_VERSION)
+    return cache_file(data_dir, f"dataset-{profile.name}", spec)
 
 
 def load_dataset(profile: Profile, robot: Robot = SIM_ROBOT, gravity: str = "vertical", *,
@@ -159,14 +134,14 @@ def load_dataset(profile: Profile, robot: Robot = SIM_ROBOT, gravity: str = "ver
     it stopped; the final file appears atomically.
     """
     path = dataset_path(profile, robot, gravity, data_dir)
-    cached = _dataset_from(read_npz(path), path.stem)
+    cached = _dataset_from(read_npz(path), path.stem, robot, gravity)
     if cached is not None:
         return cached
     n_steps = int(round(profile.episode_seconds / DT))
     u = polynomial_excitation(profile.n_episodes, n_steps, np.random.default_rng(profile.seed))
     simulator = Simulator(robot, gravity=gravity)
     blocks_dir = path.with_suffix(".blocks")
-    blocks_dir.mkdir(exist_ok=True)
+    blocks_dir.mkdir(parents=True, exist_ok=True)
     states = []
     for start in range(0, profile.n_episodes, BLOCK_EPISODES):
         stop = min(start + BLOCK_EPISODES, profile.n_episodes)
@@ -174,14 +149,14 @@ def load_dataset(profile: Profile, robot: Robot = SIM_ROBOT, gravity: str = "ver
         done = (read_npz(block_path) or {}).get("states")
         if done is None or done.shape != (stop - start, n_steps + 1, 6):
             done = simulator.rollout(u[start:stop], progress=progress)
-            write_npz_atomic(block_path, states=done)
+            write_npz(block_path, states=done)
         states.append(done)
     train, val, test = split_episodes(profile.n_episodes, profile.seed)
-    write_npz_atomic(path, u=u, states=np.concatenate(states), train=train, val=val, test=test)
+    write_npz(path, u=u, states=np.concatenate(states), train=train, val=val, test=test)
     for block_path in blocks_dir.iterdir():
         block_path.unlink()
     blocks_dir.rmdir()
-    return _dataset_from(read_npz(path), path.stem)
+    return _dataset_from(read_npz(path), path.stem, robot, gravity)
 
 
 def coverage(training_states, query_states, held_out_states, quantile: float = 0.99, max_points: int = 200_000,

@@ -4,6 +4,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
+import pandas as pd
 
 from .checks import as_real_array
 
@@ -84,3 +85,15 @@ def latency(fn, *args, repeats: int = 1000, warmup: int = 20) -> dict:
         fn(*args)
         times[k] = time.perf_counter() - start
     return {"median": float(np.median(times)), "p99": float(np.quantile(times, 0.99))}
+
+
+def table_rows(results: pd.DataFrame) -> pd.DataFrame:
+    """Per model: Table I (RMSE mean over shapes / random) and Table II (phase lag on shapes,
+    input energy on random references)."""
+    shapes, random = results[results.family == "shape"], results[results.family == "random"]
+    return pd.DataFrame({
+        "rmse_shape_mm": shapes.groupby("model").rmse_mm.mean(),
+        "rmse_random_mm": random.groupby("model").rmse_mm.mean(),
+        "phase_lag_shape_s": shapes.groupby("model").phase_lag_s.mean(),
+        "input_energy_random": random.groupby("model").input_energy.mean(),
+    })

@@ -11,6 +11,7 @@ import numpy as np
 from .checks import check_choice
 
 REPO = Path(__file__).resolve().parent.parent
+DATA_DIR = REPO / "data"  # generated datasets, caches and user-trained models (git-ignored)
 SEQUENCE_MODELS = ("lstm", "transformer")  # models that read a window of past transitions
 
 

@@ -15,12 +15,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .control import table_rows
+from .metrics import table_rows
 from .profiles import REPO, Profile
 from .robots import HW_ROBOT
+from .store import write_text
 
 COLUMNS = {"rmse_shape_mm": "shape_mm", "rmse_random_mm": "random_mm", "phase_lag_shape_s": "phase_lag_s",
-           "input_energy_random": "input_energy"}  # control.table_rows -> the paper's table headings
+           "input_energy_random": "input_energy"}  # metrics.table_rows -> the paper's table headings
 MODELS = ["mlp", "lstm", "transformer", "rf", "rf-physical", "rf-fwd"]
 LABELS = {"mlp": "MLP", "lstm": "LSTM", "transformer": "Transformer", "rf": "RF", "rf-physical": "RF-Physical",
           "rf-fwd": "RF-FWD"}
@@ -125,9 +126,9 @@ def _cell(value, digits: int) -> str:
 
 def save_table(profile: Profile, table: pd.DataFrame, name: str, digits: int = 2) -> str:
     """Write a table as CSV and Markdown under the profile's output folder; return the Markdown."""
-    table.to_csv(profile.output_dir / f"{name}.csv")
+    write_text(profile.output_dir / f"{name}.csv", table.to_csv())
     text = markdown(table, digits)
-    (profile.output_dir / f"{name}.md").write_text(text + "\n")
+    write_text(profile.output_dir / f"{name}.md", text + "\n")
     return text
 
 

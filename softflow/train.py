@@ -1,10 +1,16 @@
-"""One training loop for every inverse model: AdamW, warm-up + cosine LR, optional EMA,
-validation every epoch, early stopping, atomic checkpoints that resume after an interrupt."""
+"""One training loop for every inverse model (AdamW, warm-up + cosine LR, optional EMA,
+validation every epoch, early stopping, atomic checkpoints that resume after an
+interrupt), and where trained models live.
+
+Checkpoints are found by content, never by a rod's name: a model's folder is keyed by
+the parameters of the rod and the gravity it was trained for. The paper-profile weights
+in ``checkpoints/`` ship with the repository and are only read; a model trained by a
+user, a notebook or a sweep goes to ``data/checkpoints/``. Only ``ship=True`` (the
+``--ship`` flag of ``python -m softflow train``) writes ``checkpoints/``.
+"""
 from __future__ import annotations
 
 import copy
-import inspect
-import os
 import time
 from dataclasses import asdict
 from pathlib import Path
@@ -13,40 +19,17 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
+from . import data
 from .data import Dataset
-from .models.baselines import InverseLSTM, InverseMLP, InverseTransformer
+from .models import build_model, model_spec, resolved_kwargs
 from .models.common import one_thread
-from .models.flow import RectifiedFlow
-from .models.forward import ForwardModel
-from .profiles import TrainConfig
+from .profiles import DATA_DIR, REPO, Profile, TrainConfig, get_profile
+from .robots import SIM_ROBOT, Robot
+from .sim import Simulator
+from .store import atomic_write, content_key
 
-MODELS = {  # name -> (class, keyword arguments)
-    "mlp": (InverseMLP, {}),
-    "lstm": (InverseLSTM, {"context": 10}),
-    "transformer": (InverseTransformer, {"context": 10}),
-    "forward": (ForwardModel, {}),
-    "rf": (RectifiedFlow, {}),
-    "rf-physical": (RectifiedFlow, {"prior": "vertical"}),
-    "rf-fwd": (RectifiedFlow, {"consistency": 1.0}),
-}
-
-
-def resolved_kwargs(name: str, **overrides) -> dict:
-    """Every constructor argument of model ``name``: its class defaults, then the registry's,
-    then ``overrides``. A checkpoint records these, so changing any default makes it stale."""
-    if name not in MODELS:
-        raise ValueError(f"model must be one of {sorted(MODELS)}; got {name!r}")
-    cls, kwargs = MODELS[name]
-    try:
-        arguments = inspect.signature(cls).bind(**{**kwargs, **overrides})
-    except TypeError as error:
-        raise ValueError(f"bad arguments for model {name!r}: {error}") from error
-    arguments.apply_defaults()
-    return dict(arguments.arguments)
-
-
-def build_model(name: str, **overrides) -> torch.nn.Module:
-    return MODELS[name][0](**resolved_kwargs(name, **overrides))
+SHIPPED = REPO / "checkpoints"  # paper-profile weights, committed; written only with ship=True
+TRAINED = DATA_DIR / "checkpoints"  # every other trained model, rebuilt on demand
 
 
 def gather_windows(states: np.ndarray, episodes, steps, context: int) -> np.ndarray:
@@ -100,9 +83,8 @@ def _update_ema(ema, model, step: int, decay: float):
 
 
 def save_atomic(obj, path: Path):
-    tmp = path.with_name(path.name + f".tmp{os.getpid()}")
-    torch.save(obj, tmp)
-    os.replace(tmp, path)
+    with atomic_write(path) as f:
+        torch.save(obj, f)
 
 
 def load_checkpoint(path: Path) -> dict:
@@ -134,46 +116,74 @@ def _evaluate(model, window, u, extras, batch: int = 4096) -> float:
     return float(sum(losses) / len(window))
 
 
+def identity(name: str, model_kwargs: dict | None, config: TrainConfig, data_key: str) -> dict:
+    """What makes two checkpoints the same model: a checkpoint records it, and one whose
+    record differs from today's is stale (trained with other arguments, budget or data)."""
+    return dict(name=name, model_kwargs=resolved_kwargs(name, **(model_kwargs or {})), train_config=asdict(config),
+                data_key=data_key)
+
+
+def _matches(checkpoint: dict, wanted: dict) -> bool:
+    return {k: checkpoint.get(k) for k in wanted} == wanted
+
+
 def train(name: str, dataset: Dataset, config: TrainConfig, path: Path, *, model_kwargs: dict | None = None,
-          progress: bool = True) -> tuple[torch.nn.Module, dict]:
+          dependencies: dict | None = None, device: str = "cpu", progress: bool = True) -> tuple[torch.nn.Module, dict]:
     """Train model ``name`` on the dataset's train split; validate on its val split.
 
     ``path`` receives the final checkpoint (best validation weights, EMA if enabled);
     ``path``.latest holds the state to resume from after an interrupt. A finished
-    checkpoint with the same configuration is returned without training.
+    checkpoint with the same identity is returned without training. ``dependencies``:
+    the trained models the registry says ``name`` requires, by name (``ensure_trained``
+    trains them). ``device``: where to train ("cpu", "cuda", "mps"); checkpoints hold CPU tensors.
     """
+    required, given = set(model_spec(name).requires), set(dependencies or {})
+    if required != given:
+        raise ValueError(f"model {name!r} requires trained {sorted(required) or 'nothing'}; got {sorted(given) or 'nothing'}")
     with one_thread():
-        return _train(name, dataset, config, Path(path), resolved_kwargs(name, **(model_kwargs or {})), progress)
+        return _train(name, dataset, config, Path(path), identity(name, model_kwargs, config, dataset.key),
+                      dependencies or {}, torch.device(device), progress)
 
 
-def _train(name: str, dataset: Dataset, config: TrainConfig, path: Path, model_kwargs: dict, progress: bool):
+def _on_cpu(state_dict: dict) -> dict:
+    """A copy of the weights on the CPU: what checkpoints hold, whatever trained them."""
+    return {k: v.detach().to("cpu", copy=True) for k, v in state_dict.items()}
+
+
+def _to(device, window, u, extras):
+    return window.to(device), u.to(device), {k: v.to(device) for k, v in extras.items()}
+
+
+def _train(name: str, dataset: Dataset, config: TrainConfig, path: Path, identity: dict, dependencies: dict,
+           device: torch.device, progress: bool):
     path.parent.mkdir(parents=True, exist_ok=True)
-    identity = dict(name=name, model_kwargs=model_kwargs, train_config=asdict(config), data_key=dataset.key)
     if path.exists():
         finished = load_checkpoint(path)
-        if {k: finished.get(k) for k in identity} == identity:
+        if _matches(finished, identity):
             return model_from_checkpoint(finished, path), finished
 
     torch.manual_seed(config.seed)
-    model = build_model(name, **model_kwargs)
-    extras = model.extras(dataset.states)
+    model = build_model(name, **identity["model_kwargs"])
+    statics = Simulator(dataset.robot, dataset.gravity).static_table() if model.needs_statics else None
+    extras = model.extras(dataset.states, statics)
     as_tensor = lambda a: torch.as_tensor(a[dataset.train], dtype=torch.float32)  # noqa: E731
     model.set_normalizer(as_tensor(dataset.states), as_tensor(dataset.u), **{k: as_tensor(v) for k, v in extras.items()})
-    model.prepare(dataset, config, path)
-    torch.manual_seed(config.seed + 1)  # the same stream whether prepare trained something or read a cache
+    model.attach(**dependencies)
+    model.to(device)
+    torch.manual_seed(config.seed + 1)  # the stream after set-up, whatever the set-up drew
     ema = copy.deepcopy(model) if config.ema_decay else None
     optimizer = torch.optim.AdamW([p for p in model.parameters() if p.requires_grad], lr=config.lr,
                                   weight_decay=config.weight_decay)
     rng = np.random.default_rng(config.seed)
     sampler = Sampler(dataset, dataset.train, model.context, rng, extras)
-    val_window, val_u, val_extras = Sampler(dataset, dataset.val, model.context, rng, extras).fixed(config.val_samples,
-                                                                                                    config.seed + 1)
+    val_window, val_u, val_extras = _to(device, *Sampler(dataset, dataset.val, model.context, rng, extras)
+                                        .fixed(config.val_samples, config.seed + 1))
     state = dict(epoch=0, step=0, best_val=float("inf"), best_model=None, stale=0, history=[], wall_seconds=0.0)
 
     latest = path.with_name(path.name + ".latest")
     if latest.exists():
         resumed = load_checkpoint(latest)
-        if {k: resumed.get(k) for k in identity} == identity:
+        if _matches(resumed, identity):
             model.load_state_dict(resumed["model"])
             if ema is not None:
                 ema.load_state_dict(resumed["ema"])
@@ -189,7 +199,7 @@ def _train(name: str, dataset: Dataset, config: TrainConfig, path: Path, model_k
         for _ in range(config.steps_per_epoch):
             for group in optimizer.param_groups:
                 group["lr"] = get_lr(state["step"], config)
-            window, u, batch_extras = sampler.batch(config.batch_size)
+            window, u, batch_extras = _to(device, *sampler.batch(config.batch_size))
             loss = model.compute_loss(window, u, **batch_extras)
             optimizer.zero_grad(set_to_none=True)
             loss.backward()
@@ -202,11 +212,11 @@ def _train(name: str, dataset: Dataset, config: TrainConfig, path: Path, model_k
         state["epoch"] += 1
         state["history"].append(dict(epoch=state["epoch"], train_loss=loss.item(), val_loss=val))
         if val < state["best_val"]:
-            state.update(best_val=val, best_model=copy.deepcopy(evaluated.state_dict()), stale=0)
+            state.update(best_val=val, best_model=_on_cpu(evaluated.state_dict()), stale=0)
         else:
             state["stale"] += 1
         state["wall_seconds"] += time.perf_counter() - start
-        save_atomic(dict(identity, model=model.state_dict(), ema=ema.state_dict() if ema is not None else None,
+        save_atomic(dict(identity, model=_on_cpu(model.state_dict()), ema=_on_cpu(ema.state_dict()) if ema is not None else None,
                          optimizer=optimizer.state_dict(), numpy_rng=rng.bit_generator.state,
                          torch_rng=torch.get_rng_state(), state=state), latest)
         bar.update(1)
@@ -218,3 +228,67 @@ def _train(name: str, dataset: Dataset, config: TrainConfig, path: Path, model_k
     save_atomic(final, path)
     latest.unlink(missing_ok=True)
     return model_from_checkpoint(final, path), final
+
+
+# ---------------------------------------------------------------------------- where models live
+def rod_folder(robot: Robot, gravity: str) -> str:
+    """Sub-folder of a rod and gravity configuration, keyed by the rod's parameters (a
+    calibrated copy of a rod never shares its folder); "" for the paper's simulation rod."""
+    if (robot, gravity) == (SIM_ROBOT, "vertical"):
+        return ""
+    parameters = {k: v for k, v in asdict(robot).items() if k != "name"}
+    return f"{robot.name}-{gravity}-{content_key(parameters, 8)}"
+
+
+def checkpoint_path(name: str, profile: str, robot: Robot = SIM_ROBOT, gravity: str = "vertical",
+                    model_kwargs: dict | None = None, *, shipped: bool = False) -> Path:
+    """Where model ``name`` of a profile is trained to (``shipped``: its committed copy in
+    checkpoints/, paper profile only); variants with other constructor arguments (a size
+    sweep) in variants/, named after the arguments that differ."""
+    if shipped and profile != "paper":
+        raise ValueError(f"only paper-profile models ship in {SHIPPED}; got profile {profile!r}")
+    folder = (SHIPPED if shipped else TRAINED / profile) / rod_folder(robot, gravity)
+    default, chosen = resolved_kwargs(name), resolved_kwargs(name, **(model_kwargs or {}))
+    changed = "-".join(f"{key}{value}" for key, value in chosen.items() if value != default[key])
+    return folder / "variants" / f"{name}-{changed}.pt" if changed else folder / f"{name}.pt"
+
+
+def find_checkpoint(name: str, profile: str, robot: Robot = SIM_ROBOT, gravity: str = "vertical",
+                    model_kwargs: dict | None = None) -> tuple[Path | None, bool]:
+    """The checkpoint to use for model ``name`` and whether it is current: a user-trained
+    one that matches today's identity, else the shipped one, else whichever exists (stale).
+    (None, False) when there is none."""
+    P = get_profile(profile)
+    wanted = identity(name, model_kwargs, P.train_config(name), data.dataset_path(P, robot, gravity).stem)
+    candidates = [checkpoint_path(name, profile, robot, gravity, model_kwargs)]
+    if profile == "paper":
+        candidates.append(checkpoint_path(name, profile, robot, gravity, model_kwargs, shipped=True))
+    existing = [path for path in candidates if path.exists()]
+    for path in existing:
+        if _matches(load_checkpoint(path), wanted):
+            return path, True
+    return (existing[0], False) if existing else (None, False)
+
+
+def ensure_trained(name: str, profile: Profile, dataset: Dataset, robot: Robot = SIM_ROBOT, gravity: str = "vertical",
+                   *, model_kwargs: dict | None = None, ship: bool = False, device: str = "cpu",
+                   progress: bool = False):
+    """Model ``name`` trained on ``dataset`` with the profile's budget for it: the shipped
+    checkpoint when it is current, else a finished one in data/checkpoints/, else trained
+    there now (``ship=True``: into checkpoints/ instead, the only way to write it). The
+    models it requires (RF-FWD's surrogate) are ensured first, each with its own budget."""
+    if dataset.robot != robot or dataset.gravity != gravity:
+        raise ValueError(f"dataset was made for {dataset.robot.name!r} / {dataset.gravity!r}, "
+                         f"not {robot.name!r} / {gravity!r}")
+    config = profile.train_config(name)
+    if profile.name == "paper" and not ship:
+        shipped = checkpoint_path(name, profile.name, robot, gravity, model_kwargs, shipped=True)
+        if shipped.exists():
+            checkpoint = load_checkpoint(shipped)
+            if _matches(checkpoint, identity(name, model_kwargs, config, dataset.key)):
+                return model_from_checkpoint(checkpoint, shipped), checkpoint
+    dependencies = {dep: ensure_trained(dep, profile, dataset, robot, gravity, ship=ship, device=device,
+                                        progress=progress)[0] for dep in model_spec(name).requires}
+    path = checkpoint_path(name, profile.name, robot, gravity, model_kwargs, shipped=ship)
+    return train(name, dataset, config, path, model_kwargs=model_kwargs, dependencies=dependencies, device=device,
+                 progress=progress)

@@ -10,18 +10,18 @@ through the simulator, so their true u is known.
 """
 from __future__ import annotations
 
-import sys
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.interpolate import make_interp_spline
 
-from . import data as data_module
-from . import sim as sim_module
 from .checks import check_choice
-from .data import DT, cache_path, mixed_excitation, read_npz, sum_of_sines_excitation, write_npz_atomic
+from .data import DT, mixed_excitation, sum_of_sines_excitation
+from .profiles import DATA_DIR
 from .sim import Simulator
+from .store import cache_file, read_npz, write_npz
 
+REFERENCE_VERSION = 1  # bump when a reference changes (it keys the reference caches)
 NOMINAL_SPEED = 0.15  # m/s, mean tip speed along a structured path
 APPROACH_SECONDS = 1.5  # s, rest pose -> path start
 RAMP_SECONDS = 0.5  # s, speed ramps at the start and the end of a path
@@ -213,15 +213,14 @@ def _unpack(arrays: dict) -> list[Reference]:
 
 
 def cached_references(sim: Simulator, kind: str, build) -> list[Reference]:
-    """build(sim) -> references, cached under data/ by a hash of the simulator and this code."""
-    spec = dict(robot=asdict(sim.robot), gravity=sim.gravity, order=sim.order, n_segments=sim.n_segments,
-                substeps=sim.substeps, kind=kind, build=build.__name__)
-    path = cache_path(f"references-{kind}", spec, (sim_module, data_module, sys.modules[__name__]))
+    """build(sim) -> references, cached under data/ by the simulator's numbers and REFERENCE_VERSION."""
+    spec = dict(simulator=sim.spec(), kind=kind, build=build.__name__, version=REFERENCE_VERSION)
+    path = cache_file(DATA_DIR, f"references-{kind}", spec)
     arrays = read_npz(path)
     if arrays is not None and "names" in arrays:
         return _unpack(arrays)
     references = build(sim)
-    write_npz_atomic(path, **_pack(references))
+    write_npz(path, **_pack(references))
     return references
 
 

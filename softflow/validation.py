@@ -10,6 +10,7 @@ import numpy as np
 from scipy.integrate import solve_bvp
 from scipy.optimize import brentq
 
+from . import statics
 from .robots import Robot
 from .sim import GRAVITY, Simulator
 
@@ -72,7 +73,7 @@ def linear_modes(sim: Simulator):
     Poles of M0 qdd + D qd + Kt q = 0, Kt the tangent stiffness including gravity."""
     q0 = sim.rest_q()[None]
     M = sim.mass_matrix(q0)[0]
-    Kt = sim._tangent_stiffness(q0, sim._gravity_force(q0))[0]
+    Kt = statics.tangent_stiffness(sim, q0, statics.gravity_force(sim, q0))[0]
     n = sim.nq
     state_matrix = np.block([[np.zeros((n, n)), np.eye(n)],
                              [-np.linalg.solve(M, Kt), -np.linalg.solve(M, sim.damping_matrix)]])

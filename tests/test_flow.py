@@ -5,22 +5,13 @@ import numpy as np
 import pytest
 import torch
 
-from softflow import control, data, train
+from conftest import QUICK, SMALL
+from softflow import control, train
 from softflow.models.baselines import InverseMLP
 from softflow.models.common import one_thread
 from softflow.models.flow import RectifiedFlow
-from softflow.profiles import Profile, TrainConfig
 from softflow.robots import SIM_ROBOT
 from softflow.sim import Simulator
-from softflow.statics import StaticTable
-
-SMALL = Profile("small", n_episodes=24, episode_seconds=2.0)
-QUICK = TrainConfig(epochs=3, steps_per_epoch=100, batch_size=256, warmup_steps=20, val_samples=2000, patience=3)
-
-
-@pytest.fixture(scope="module")
-def dataset(tmp_path_factory):
-    return data.load_dataset(SMALL, data_dir=tmp_path_factory.mktemp("data"), progress=False)
 
 
 def fit(model, window, u, steps=1500):
@@ -51,17 +42,19 @@ def test_rf_keeps_both_modes_where_regression_averages_them():
     assert 0.3 < (sampled[:, 0] > 0).float().mean() < 0.7  # both modes, in proportion
 
 
-def test_rf_learns_held_out_transitions(dataset, tmp_path):
-    model, _ = train.train("rf", dataset, QUICK, tmp_path / "rf.pt", progress=False)
+def test_rf_learns_held_out_transitions(dataset, trained):
+    model, _ = trained("rf")
     window, u, _ = train.Sampler(dataset, dataset.test, 1, np.random.default_rng(0)).fixed(3000, 0)
     with torch.no_grad():
         mse = torch.mean((model.predict(window, noise=torch.zeros(len(window), 2)) - u) ** 2).item()
     assert mse < 0.5 * torch.var(u, dim=0).mean().item()
 
 
-def test_rf_fwd_trains_its_forward_surrogate_and_freezes_it(dataset, tmp_path):
-    model, _ = train.train("rf-fwd", dataset, QUICK, tmp_path / "rf-fwd.pt", progress=False)
-    surrogate = train.model_from_checkpoint(train.load_checkpoint(tmp_path / "forward.pt"))
+def test_rf_fwd_needs_its_trained_forward_surrogate_and_keeps_it_frozen(dataset, trained, tmp_path):
+    with pytest.raises(ValueError, match=r"requires trained \['forward'\]"):
+        train.train("rf-fwd", dataset, QUICK, tmp_path / "rf-fwd.pt", progress=False)
+    model, _ = trained("rf-fwd")
+    surrogate, _ = trained("forward")
     for a, b in zip(model.forward_model.state_dict().values(), surrogate.state_dict().values()):
         torch.testing.assert_close(a, b)  # unchanged by the RF-FWD training
     window, u, _ = train.Sampler(dataset, dataset.test, 1, np.random.default_rng(0)).fixed(2000, 0)
@@ -73,7 +66,7 @@ def test_rf_fwd_trains_its_forward_surrogate_and_freezes_it(dataset, tmp_path):
 
 @pytest.fixture(scope="module")
 def table():
-    return StaticTable(Simulator(SIM_ROBOT, gravity="vertical"))
+    return Simulator(SIM_ROBOT, gravity="vertical").static_table()
 
 
 def test_static_table_inverse_matches_inverse_statics(table):
@@ -86,17 +79,19 @@ def test_static_table_inverse_matches_inverse_statics(table):
 
 
 def test_rf_physical_adds_its_prior(table):
-    model = RectifiedFlow(prior="vertical")
+    model = RectifiedFlow(prior=True)
     states = np.zeros((1, 3, 6))
     states[0, :, 0] = 0.4
     states[0, 2, 1] = 0.05
-    prior = model.extras(states)["prior"]
+    prior = model.extras(states, table)["prior"]
     assert prior.shape == (1, 2, 2)
     np.testing.assert_allclose(prior[0, 1], table.inverse(states[0, 2, :3]), atol=1e-9)
+    with pytest.raises(ValueError, match="static table"):
+        model.extras(states)
 
 
-def test_plans_are_reproducible_and_noise_can_be_fresh(dataset, tmp_path):
-    model, _ = train.train("rf", dataset, QUICK, tmp_path / "rf.pt", progress=False)
+def test_plans_are_reproducible_and_noise_can_be_fresh(dataset, trained):
+    model, _ = trained("rf")
     controller = control.Controller(model, "rf", seed=3)
     reference = dataset.states[0]
     seeded = controller.plan(reference, noise="seeded")
@@ -111,8 +106,8 @@ def test_plans_are_reproducible_and_noise_can_be_fresh(dataset, tmp_path):
         controller.plan(reference, noise="none")
 
 
-def test_samples_are_independent_draws_and_their_mean_is_a_plan(dataset, tmp_path):
-    model, _ = train.train("rf", dataset, QUICK, tmp_path / "rf.pt", progress=False)
+def test_samples_are_independent_draws_and_their_mean_is_a_plan(dataset, trained):
+    model, _ = trained("rf")
     controller = control.Controller(model, "rf", seed=3)
     references = dataset.states[:2]
     samples = controller.sample(references, 5)
@@ -120,8 +115,6 @@ def test_samples_are_independent_draws_and_their_mean_is_a_plan(dataset, tmp_pat
     assert samples.std(0).min() > 0  # every step differs between draws
     np.testing.assert_array_equal(controller.sample(references[0], 5), controller.sample(references[:1], 5)[:, 0])
     np.testing.assert_allclose(controller.plan(references, noise="seeded", n_samples=5), samples.mean(0))
-    regression = control.Controller(train.train("mlp", dataset, QUICK, tmp_path / "mlp.pt", progress=False)[0], "mlp")
-    assert np.ptp(regression.sample(references[0], 3), axis=0).max() == 0
     with pytest.raises(ValueError, match="positive integer"):
         controller.sample(references, 0)
     with pytest.raises(ValueError, match="n_samples"):
@@ -129,10 +122,10 @@ def test_samples_are_independent_draws_and_their_mean_is_a_plan(dataset, tmp_pat
 
 
 @pytest.mark.parametrize("name", ["rf", "rf-fwd"])
-def test_lean_numpy_sampler_gives_the_torch_models_u(name, dataset, tmp_path):
+def test_lean_numpy_sampler_gives_the_torch_models_u(name, dataset, trained):
     from softflow.models.flow import LeanFlow
 
-    model, _ = train.train(name, dataset, QUICK, tmp_path / f"{name}.pt", progress=False)
+    model, _ = trained(name)
     window, _, _ = train.Sampler(dataset, dataset.test, 1, np.random.default_rng(0)).fixed(500, 0)
     z = torch.randn(500, 2)
     with torch.no_grad():
@@ -145,7 +138,7 @@ def test_lean_sampler_handles_the_physical_prior():
     from softflow.models.flow import LeanFlow
 
     torch.manual_seed(0)
-    model = RectifiedFlow(prior="vertical", hidden=32, layers=2).eval()
+    model = RectifiedFlow(prior=True, hidden=32, layers=2).eval()
     window, prior, z = torch.randn(50, 2, 6), torch.randn(50, 2), torch.randn(50, 2)
     model.set_normalizer(torch.randn(3, 20, 6), torch.randn(3, 19, 2), prior=torch.randn(3, 19, 2))
     with torch.no_grad():
@@ -155,12 +148,12 @@ def test_lean_sampler_handles_the_physical_prior():
 
 
 def test_ensure_trained_uses_each_models_budget_and_reuses_the_checkpoint(dataset, tmp_path, monkeypatch):
-    monkeypatch.setattr(control, "TRAINED", tmp_path)
+    monkeypatch.setattr(train, "TRAINED", tmp_path)
     longer = dataclasses.replace(QUICK, epochs=4)
     profile = dataclasses.replace(SMALL, train=QUICK, per_step_train=longer)
-    _, checkpoint = control.ensure_trained("rf", profile, dataset)
+    _, checkpoint = train.ensure_trained("rf", profile, dataset)
     assert checkpoint["train_config"] == dataclasses.asdict(longer)  # a per-step model gets the longer budget
-    assert control.checkpoint_path("rf", profile.name) == tmp_path / "small" / "rf.pt"
+    assert train.checkpoint_path("rf", profile.name) == tmp_path / "small" / "rf.pt"
     stamp = (tmp_path / "small" / "rf.pt").stat().st_mtime_ns
-    control.ensure_trained("rf", profile, dataset)
+    train.ensure_trained("rf", profile, dataset)
     assert (tmp_path / "small" / "rf.pt").stat().st_mtime_ns == stamp  # reused, not retrained

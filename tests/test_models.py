@@ -5,19 +5,12 @@ import numpy as np
 import pytest
 import torch
 
-from softflow import control, data, train, trajectories
+from conftest import QUICK, SMALL
+from softflow import control, data, models, train, trajectories
+from softflow.models.baselines import InverseMLP
 from softflow.models.common import Normalizer
-from softflow.profiles import Profile, TrainConfig
 from softflow.robots import SIM_ROBOT
 from softflow.sim import Simulator
-
-SMALL = Profile("small", n_episodes=24, episode_seconds=2.0)
-QUICK = TrainConfig(epochs=3, steps_per_epoch=60, batch_size=256, warmup_steps=20, val_samples=2000, patience=3)
-
-
-@pytest.fixture(scope="module")
-def dataset(tmp_path_factory):
-    return data.load_dataset(SMALL, data_dir=tmp_path_factory.mktemp("data"), progress=False)
 
 
 def test_normalizer_round_trip_and_constant_channel_guard():
@@ -35,8 +28,8 @@ def test_windows_repeat_the_rest_state_before_the_start():
 
 
 @pytest.mark.parametrize("name", ["mlp", "lstm", "transformer"])
-def test_training_beats_the_mean_on_held_out_episodes(name, dataset, tmp_path):
-    model, checkpoint = train.train(name, dataset, QUICK, tmp_path / f"{name}.pt", progress=False)
+def test_training_beats_the_mean_on_held_out_episodes(name, dataset, trained):
+    model, checkpoint = trained(name)
     window, u, _ = train.Sampler(dataset, dataset.test, model.context, np.random.default_rng(0)).fixed(3000, 0)
     with torch.no_grad():
         held_out_mse = torch.mean((model.predict(window) - u) ** 2).item()
@@ -48,7 +41,7 @@ def test_training_beats_the_mean_on_held_out_episodes(name, dataset, tmp_path):
 def test_an_interrupted_run_resumes_to_the_same_weights(dataset, tmp_path, monkeypatch):
     reference, _ = train.train("mlp", dataset, QUICK, tmp_path / "straight.pt", progress=False)
     calls = {"n": 0}
-    real_loss = train.InverseMLP.compute_loss
+    real_loss = InverseMLP.compute_loss
 
     def interrupt_in_epoch_two(self, *args, **kwargs):
         calls["n"] += 1
@@ -56,11 +49,11 @@ def test_an_interrupted_run_resumes_to_the_same_weights(dataset, tmp_path, monke
             raise KeyboardInterrupt
         return real_loss(self, *args, **kwargs)
 
-    monkeypatch.setattr(train.InverseMLP, "compute_loss", interrupt_in_epoch_two)
+    monkeypatch.setattr(InverseMLP, "compute_loss", interrupt_in_epoch_two)
     with pytest.raises(KeyboardInterrupt):
         train.train("mlp", dataset, QUICK, tmp_path / "resumed.pt", progress=False)
     assert (tmp_path / "resumed.pt.latest").exists() and not (tmp_path / "resumed.pt").exists()
-    monkeypatch.setattr(train.InverseMLP, "compute_loss", real_loss)
+    monkeypatch.setattr(InverseMLP, "compute_loss", real_loss)
     resumed, _ = train.train("mlp", dataset, QUICK, tmp_path / "resumed.pt", progress=False)
     for a, b in zip(reference.state_dict().values(), resumed.state_dict().values()):
         torch.testing.assert_close(a, b)
@@ -75,22 +68,22 @@ def test_a_changed_default_retrains_instead_of_reusing_the_checkpoint(dataset, t
     stamp = path.stat().st_mtime_ns
     train.train("mlp", dataset, QUICK, path, progress=False)
     assert path.stat().st_mtime_ns == stamp  # same arguments: reused
-    monkeypatch.setitem(train.MODELS, "mlp", (train.InverseMLP, {"hidden": 32}))
+    monkeypatch.setitem(models.MODELS, "mlp", models.ModelSpec(InverseMLP, {"hidden": 32}))
     model, second = train.train("mlp", dataset, QUICK, path, progress=False)
     assert second["model_kwargs"] == {"hidden": 32, "layers": 3} and model.net[0].out_features == 32
 
 
 def test_a_size_variant_trains_beside_the_default_model(dataset, tmp_path, monkeypatch):
-    monkeypatch.setattr(control, "TRAINED", tmp_path)
+    monkeypatch.setattr(train, "TRAINED", tmp_path)
     profile = dataclasses.replace(SMALL, train=QUICK)
-    _, variant = control.ensure_trained("mlp", profile, dataset, model_kwargs={"hidden": 32})
+    _, variant = train.ensure_trained("mlp", profile, dataset, model_kwargs={"hidden": 32})
     assert (tmp_path / "small" / "variants" / "mlp-hidden32.pt").exists() and variant["model_kwargs"]["hidden"] == 32
-    assert control.checkpoint_path("mlp", "small", model_kwargs={"hidden": 256}) == tmp_path / "small" / "mlp.pt"
+    assert train.checkpoint_path("mlp", "small", model_kwargs={"hidden": 256}) == tmp_path / "small" / "mlp.pt"
 
 
 def test_unknown_model_arguments_are_a_value_error():
     with pytest.raises(ValueError, match="bad arguments for model 'rf'"):
-        train.build_model("rf", width=3)
+        models.build_model("rf", width=3)
 
 
 def test_a_corrupt_checkpoint_is_reported_by_path(tmp_path):
@@ -100,13 +93,16 @@ def test_a_corrupt_checkpoint_is_reported_by_path(tmp_path):
         train.load_checkpoint(path)
 
 
-def test_missing_controller_names_the_rebuild_command():
-    with pytest.raises(ValueError, match="make reproduce"):
+def test_missing_controller_names_the_command_that_trains_it(tmp_path, monkeypatch):
+    monkeypatch.setattr(train, "TRAINED", tmp_path)
+    with pytest.raises(ValueError, match="python -m softflow train --profile ci mlp"):
+        control.load_controller("mlp", profile="ci")
+    with pytest.raises(ValueError, match="profile must be one of"):
         control.load_controller("mlp", profile="nonexistent")
 
 
-def test_plan_shapes_and_batching(dataset, tmp_path):
-    model, _ = train.train("lstm", dataset, QUICK, tmp_path / "lstm.pt", progress=False)
+def test_plan_shapes_and_batching(dataset, trained):
+    model, _ = trained("lstm")
     controller = control.Controller(model, "lstm")
     reference = dataset.states[0]
     single = controller.plan(reference)

@@ -51,18 +51,21 @@ class InverseModel(nn.Module):
     """
 
     context = 1
+    needs_statics = False  # True: extras() needs the training rod's static table
 
     def __init__(self):
         super().__init__()
         self.state_norm, self.delta_norm, self.action_norm = Normalizer(6), Normalizer(6), Normalizer(2)
 
-    def extras(self, states) -> dict:
+    def extras(self, states, statics=None) -> dict:
         """Per-step inputs beyond the state window, computed from states (B, T+1, 6) as
         {name: (B, T, k) array}; passed to set_normalizer, compute_loss and predict."""
         return {}
 
-    def prepare(self, dataset, config, path):
-        """Called once before training (after set_normalizer); e.g. to fit a surrogate."""
+    def attach(self, **dependencies):
+        """Receive the trained models the registry says this one requires (before training)."""
+        if dependencies:
+            raise ValueError(f"{type(self).__name__} takes no trained dependencies; got {sorted(dependencies)}")
 
     def set_normalizer(self, states: torch.Tensor, u: torch.Tensor):
         """Fit the normalisers on training episodes: states (E, T+1, 6), u (E, T, 2)."""

@@ -9,8 +9,6 @@ actuation along the straight path xi_tau = (1 - tau) z + tau xi, trained with
 """
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import torch
 
@@ -19,14 +17,19 @@ from .forward import ForwardModel
 
 
 class RectifiedFlow(InverseModel):
-    """The velocity field and its sampler. ``prior``: gravity configuration of the static
-    prior (RF-Physical), or None. ``consistency``: lambda_cons of RF-FWD (0 for RF)."""
+    """The velocity field and its sampler. ``prior``: learn the residual around the static
+    prior u_phys of the training rod (RF-Physical). ``consistency``: lambda_cons of RF-FWD
+    (0 for RF); its frozen forward surrogate is trained first and given to ``attach``."""
 
     def __init__(self, hidden: int = 256, layers: int = 3, steps: int = 4, tau_sampling: str = "logit-normal",
-                 prior: str | None = None, consistency: float = 0.0):
+                 prior: bool = False, consistency: float = 0.0):
         super().__init__()
         if tau_sampling not in ("uniform", "logit-normal"):
             raise ValueError(f"tau_sampling must be 'uniform' or 'logit-normal'; got {tau_sampling!r}")
+        if not isinstance(prior, bool):
+            raise ValueError(f"prior must be True or False; got {prior!r}")
+        if not (isinstance(steps, int) and steps >= 1):
+            raise ValueError(f"steps must be a positive integer; got {steps!r}")
         self.steps, self.tau_sampling, self.prior, self.consistency = steps, tau_sampling, prior, consistency
         self.net = mlp([2 + 1 + 12 + (2 if prior else 0)] + [hidden] * layers + [2])
         if prior:
@@ -35,15 +38,18 @@ class RectifiedFlow(InverseModel):
             self.forward_model = ForwardModel().requires_grad_(False)
 
     # -- data-side hooks used by the training loop and the controller
-    def extras(self, states: np.ndarray) -> dict:
-        """Per-step inputs beyond the state window: the static prior u_phys(p_{t+1}) (B, T, 2)."""
+    @property
+    def needs_statics(self) -> bool:
+        return self.prior
+
+    def extras(self, states: np.ndarray, statics=None) -> dict:
+        """Per-step inputs beyond the state window: the static prior u_phys(p_{t+1}) (B, T, 2),
+        the inverse of ``statics`` (the training rod's ``StaticTable``)."""
         if not self.prior:
             return {}
-        from ..robots import SIM_ROBOT
-        from ..sim import Simulator
-        from ..statics import StaticTable
-
-        return {"prior": StaticTable(Simulator(SIM_ROBOT, gravity=self.prior)).inverse(states[:, 1:, :3])}
+        if statics is None:
+            raise ValueError("RF-Physical needs the static table of its rod to compute its prior")
+        return {"prior": statics.inverse(states[:, 1:, :3])}
 
     def set_normalizer(self, states, u, prior=None):
         super().set_normalizer(states, u)
@@ -51,13 +57,12 @@ class RectifiedFlow(InverseModel):
             self.prior_norm.fit(prior)
             self.residual_norm.fit(u - prior)
 
-    def prepare(self, dataset, config, path: Path):
-        """RF-FWD: train (or reuse) the forward surrogate beside this model's checkpoint, freeze it."""
-        if self.consistency:
-            from ..train import train
-
-            surrogate, _ = train("forward", dataset, config, path.with_name("forward.pt"), progress=False)
-            self.forward_model.load_state_dict(surrogate.state_dict())
+    def attach(self, forward: ForwardModel | None = None):
+        """RF-FWD: take the trained forward surrogate's weights; they stay frozen."""
+        if self.consistency and forward is None:
+            raise ValueError("RF-FWD (consistency > 0) needs a trained forward surrogate: attach(forward=...)")
+        if forward is not None:
+            self.forward_model.load_state_dict(forward.state_dict())
 
     # -- the flow
     def _target_norm(self):
@@ -70,16 +75,16 @@ class RectifiedFlow(InverseModel):
     def velocity(self, xi, tau, condition):
         return self.net(torch.cat([xi, tau[:, None], condition], -1))
 
-    def _sample_tau(self, n):
+    def _sample_tau(self, n, device):
         if self.tau_sampling == "uniform":
-            return torch.rand(n)
-        return torch.sigmoid(torch.randn(n))  # logit-normal(0, 1): more weight mid-path
+            return torch.rand(n, device=device)
+        return torch.sigmoid(torch.randn(n, device=device))  # logit-normal(0, 1): more weight mid-path
 
     def compute_loss(self, window, u, prior=None):
         condition = self._condition(window, prior)
         xi = self._target_norm().normalize(u - prior if self.prior else u)
         z = torch.randn_like(xi)
-        tau = self._sample_tau(len(xi))
+        tau = self._sample_tau(len(xi), xi.device)
         xi_tau = (1 - tau[:, None]) * z + tau[:, None] * xi
         v = self.velocity(xi_tau, tau, condition)
         loss = torch.mean((v - (xi - z)) ** 2)
@@ -96,10 +101,10 @@ class RectifiedFlow(InverseModel):
     def predict(self, window, prior=None, noise=None, steps: int | None = None):
         """u (B, 2): Euler integration of the flow from ``noise`` (default: fresh N(0, I))."""
         condition = self._condition(window, prior)
-        xi = torch.randn(len(window), 2) if noise is None else noise
-        n = steps or self.steps
+        xi = torch.randn(len(window), 2, device=window.device) if noise is None else noise
+        n = self.steps if steps is None else steps
         for k in range(n):
-            tau = torch.full((len(xi),), k / n)
+            tau = torch.full((len(xi),), k / n, device=xi.device)
             xi = xi + self.velocity(xi, tau, condition) / n
         u = self._target_norm().unnormalize(xi)
         return u + prior if self.prior else u
@@ -133,7 +138,7 @@ class LeanFlow:
             prior = np.asarray(prior, dtype=np.float32)
             condition.append(self._normalize("prior_norm", prior))
         first_bias = np.concatenate(condition, -1) @ self.w_condition + self.weights[0][1]  # once per call
-        xi, n = np.array(noise, dtype=np.float32), steps or self.steps
+        xi, n = np.array(noise, dtype=np.float32), self.steps if steps is None else steps
         for k in range(n):
             h = xi @ self.w_xi + (k / n) * self.w_tau + first_bias
             for w, b in self.weights[1:]:

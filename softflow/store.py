@@ -1,0 +1,66 @@
+"""Files on disk: content keys for caches and one atomic writer for everything we save.
+
+A cache entry is named by a hash of the *numbers* that made it (parameters and explicit
+version constants), never of source text, so a comment edit invalidates nothing. Every
+file is written to a temporary file in its own directory, synced and renamed over the
+destination, so a reader never sees half a file and an interrupted run corrupts nothing.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import tempfile
+import zipfile
+from contextlib import contextmanager
+from pathlib import Path
+
+import numpy as np
+
+
+def content_key(spec: dict, length: int = 16) -> str:
+    """Hex digest of ``spec`` as canonical JSON (sorted keys): equal specs, equal keys."""
+    text = json.dumps(spec, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:length]
+
+
+@contextmanager
+def atomic_write(path, mode: str = "wb"):
+    """Open a temporary file beside ``path`` for writing; on success it replaces ``path``,
+    on any error it is removed and ``path`` is left as it was."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, mode) as f:
+            yield f
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def write_text(path, text: str):
+    with atomic_write(path, "w") as f:
+        f.write(text)
+
+
+def write_npz(path, **arrays):
+    with atomic_write(path) as f:
+        np.savez(f, **arrays)
+
+
+def read_npz(path) -> dict | None:
+    """All arrays of an npz file, or None when it is missing, truncated or corrupt (zip CRC)."""
+    try:
+        with np.load(path) as f:
+            return {k: f[k] for k in f.files}
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile):
+        return None
+
+
+def cache_file(directory, kind: str, spec: dict) -> Path:
+    """``directory``/<kind>-<content key of spec>.npz"""
+    return Path(directory) / f"{kind}-{content_key(spec)}.npz"

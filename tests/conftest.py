@@ -1,0 +1,29 @@
+"""Fixtures shared across test files: one small dataset and each model trained once per
+session (with ``--dist loadfile`` once per worker), never in the repository's folders."""
+import pytest
+
+from softflow import data, train
+from softflow.models import model_spec
+from softflow.profiles import Profile, TrainConfig
+
+SMALL = Profile("small", n_episodes=24, episode_seconds=2.0)
+QUICK = TrainConfig(epochs=3, steps_per_epoch=100, batch_size=256, warmup_steps=20, val_samples=2000, patience=3)
+
+
+@pytest.fixture(scope="session")
+def dataset(tmp_path_factory):
+    """24 episodes of 2 s on the simulation rod: enough to learn, seconds to make."""
+    return data.load_dataset(SMALL, data_dir=tmp_path_factory.mktemp("data"), progress=False)
+
+
+@pytest.fixture(scope="session")
+def trained(dataset, tmp_path_factory):
+    """trained(name) -> (model, checkpoint) of a model trained on ``dataset`` with QUICK;
+    the models it requires are trained first, each model once per session."""
+    folder = tmp_path_factory.mktemp("models")
+
+    def get(name):
+        dependencies = {dep: get(dep)[0] for dep in model_spec(name).requires}
+        return train.train(name, dataset, QUICK, folder / f"{name}.pt", dependencies=dependencies, progress=False)
+
+    return get
