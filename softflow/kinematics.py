@@ -67,6 +67,13 @@ def _cross_columns(a, b):
     return out
 
 
+def rowwise(x, W):
+    """x @ W for x (B, k), one row at a time: the same bits for a row whatever the batch.
+    (BLAS blocks a batched product differently for another batch size, and the convective
+    term's second difference amplifies such last-bit differences about 1e7-fold.)"""
+    return (x[:, None, :] @ W)[:, 0]
+
+
 class RodKinematics:
     """Frames, node positions and their Jacobians for a rod of ``length`` whose curvatures
     are Legendre series of degree ``order``, integrated on ``n_segments`` segments."""
@@ -88,8 +95,8 @@ class RodKinematics:
 
         Segment k turns by phi_k = int_seg k ds = (0, phi_y, phi_z); its chord is
         ds c(theta) R_k Exp(phi_k / 2) e1, exact for constant curvature."""
-        phi_y = -q[:, self.n_modes:] @ self.segment_basis.T  # (B, N)
-        phi_z = q[:, : self.n_modes] @ self.segment_basis.T
+        phi_y = -rowwise(q[:, self.n_modes:], self.segment_basis.T)  # (B, N)
+        phi_z = rowwise(q[:, : self.n_modes], self.segment_basis.T)
         theta = np.hypot(phi_y, phi_z)
         sinc, chord = _sinc(theta), _sinc(theta / 2)
         steps = _exp_bending(phi_y, phi_z, sinc, 0.5 * chord * chord)  # (B, N, 3, 3)

@@ -26,7 +26,7 @@ from tqdm import tqdm
 
 from . import statics
 from .checks import as_real_array, check_choice
-from .kinematics import RodKinematics
+from .kinematics import RodKinematics, rowwise
 from .robots import Robot
 
 SIMULATOR_VERSION = 1  # bump when a number the simulator produces changes (it keys every cache)
@@ -183,7 +183,7 @@ class Simulator:
         K, D = self.stiffness, self.damping_matrix
         implicit = 0.5 * h * D + 0.25 * h * h * K
         lhs = M + implicit
-        known = np.einsum("bij,bj->bi", M, qd) - qd @ implicit.T + h * (force + G - q @ K.T)
+        known = np.einsum("bij,bj->bi", M, qd) - rowwise(qd, implicit.T) + h * (force + G - rowwise(q, K.T))
         qd_next = qd
         for _ in range(2):  # predictor, corrector
             c = self._convective_force(Jp, q_half, 0.5 * (qd + qd_next), f["positions"])
@@ -197,7 +197,7 @@ class Simulator:
         qs[:, 0], qds[:, 0] = q, qd
         h = self.dt / self.substeps
         for t in range(T):
-            force = u[:, t] @ self.cable_map.T
+            force = rowwise(u[:, t], self.cable_map.T)
             for _ in range(self.substeps):
                 q, qd = self._step(q, qd, force, h)
             qs[:, t + 1], qds[:, t + 1] = q, qd

@@ -104,10 +104,10 @@ def inverse_static(sim, p, tol=1e-10, max_iter=50, max_residual=None):
     u0 = arc_actuation(sim.robot, p)
     u0 *= np.minimum(1.0, sim.u_bound / np.maximum(np.linalg.norm(u0, axis=-1), 1e-300))[:, None]
     try:
-        u, tip, _ = fit_static(sim, p, [0, 1, 2], u0, tol, max_iter, u_limit=sim.u_bound)
-        residual = np.linalg.norm(tip - p, axis=-1)
-    except (RuntimeError, np.linalg.LinAlgError):
-        u, residual = u0, np.full(len(p), np.inf)
+        u, residual = _fit_points(sim, p, u0, tol, max_iter)
+    except (RuntimeError, np.linalg.LinAlgError):  # some point has no fit: find out which, one at a time
+        u, residual = map(np.concatenate, zip(*(_fit_points(sim, p[i:i + 1], u0[i:i + 1], tol, max_iter, fallback=True)
+                                                for i in range(len(p)))))
     outside = np.flatnonzero(~(residual <= max_residual) | (np.linalg.norm(u, axis=-1) > sim.u_bound))
     if len(outside):
         i = outside[0]
@@ -116,6 +116,18 @@ def inverse_static(sim, p, tol=1e-10, max_iter=50, max_residual=None):
                          f"equilibrium found (|u| <= {sim.u_bound:.1f} N) is {1e3 * nearest:.1f} mm away, more than "
                          f"max_residual = {1e3 * max_residual:.1f} mm (is p in metres, robot frame?)")
     return u
+
+
+def _fit_points(sim, p, u0, tol, max_iter, fallback=False):
+    """Gauss-Newton fit of every point and its residual (m); with ``fallback`` a point that
+    has no fit gets its start u0 and an infinite residual instead of an exception."""
+    try:
+        u, tip, _ = fit_static(sim, p, [0, 1, 2], u0, tol, max_iter, u_limit=sim.u_bound)
+    except (RuntimeError, np.linalg.LinAlgError):
+        if not fallback:
+            raise
+        return u0, np.full(len(p), np.inf)
+    return u, np.linalg.norm(tip - p, axis=-1)
 
 
 def _nearest_equilibrium(sim, p, u0) -> float:

@@ -1,5 +1,6 @@
 """The RF family: generative transport, the static prior, the consistency loss, sampling."""
 import dataclasses
+import warnings
 
 import numpy as np
 import pytest
@@ -157,3 +158,34 @@ def test_ensure_trained_uses_each_models_budget_and_reuses_the_checkpoint(datase
     stamp = (tmp_path / "small" / "rf.pt").stat().st_mtime_ns
     train.ensure_trained("rf", profile, dataset)
     assert (tmp_path / "small" / "rf.pt").stat().st_mtime_ns == stamp  # reused, not retrained
+
+
+def test_rf_physical_plans_its_prior_plus_a_learned_residual(dataset, trained, table, monkeypatch):
+    import copy
+
+    from softflow import statics
+
+    model, _ = trained("rf-physical")
+    controller = control.Controller(model, "rf-physical")  # the dataset's rod: simulation, vertical
+
+    def no_second_table(*args, **kwargs):
+        raise AssertionError("a plan built another static table")
+
+    monkeypatch.setattr(statics.StaticTable, "__init__", no_second_table)  # built once, by the controller
+    episode = dataset.test[0]
+    states, u_true = dataset.states[episode], dataset.u[episode]
+    prior = table.inverse(states[1:, :3])
+    planned = controller.plan(states)
+    rms = lambda e: float(np.sqrt(np.mean(e**2)))  # noqa: E731
+    assert rms(planned - u_true) < 0.5 * rms(prior - u_true)  # the residual corrects the quasi-static prior
+    silent = copy.deepcopy(model)
+    with torch.no_grad():
+        silent.net[-1].weight.zero_()
+        silent.net[-1].bias.zero_()  # no velocity: the flow stays at z = 0, the residual at its mean
+    silent_controller = copy.copy(controller)
+    silent_controller.model = silent
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", control.SaturationWarning)  # the prior alone exceeds 4 N at times
+        silent_plan = silent_controller.plan(states)
+    expected = np.clip(prior + silent.residual_norm.mean.numpy(), -control.U_MAX, control.U_MAX)
+    np.testing.assert_allclose(silent_plan, expected, atol=1e-5)

@@ -1,5 +1,6 @@
 """Inverse models, the shared training loop and open-loop control."""
 import dataclasses
+import warnings
 
 import numpy as np
 import pytest
@@ -131,3 +132,45 @@ def test_evaluate_scores_a_perfect_plan_as_perfect():
     assert results.rmse_mm.max() < 1e-6
     assert results.mae_u1.max() == 0 and abs(results.phase_lag_s).max() < 1e-3
     np.testing.assert_allclose(results.input_energy, [np.sum(r.u_true**2) * data.DT for r in references])
+
+
+def test_plan_refuses_references_outside_the_training_workspace(dataset, trained):
+    controller = control.Controller(trained("mlp")[0], "mlp")
+    reference = dataset.states[0]
+    with pytest.raises(ValueError, match=r"reference tip position x = 400 m at index \(0, 0\) is \d+ training "
+                                         r"standard deviations .* is it in metres"):
+        controller.plan(reference * 1e3)  # millimetres
+    with pytest.raises(ValueError, match="at least one trajectory"):
+        controller.plan(np.zeros((0, 5, 6)))
+
+
+def test_plan_options_must_fit_the_model(dataset, trained):
+    regression, flow = control.Controller(trained("mlp")[0], "mlp"), control.Controller(trained("rf")[0], "rf")
+    reference = dataset.states[0]
+    with pytest.raises(ValueError, match="mlp is a regression model: it takes no noise or step options"):
+        regression.plan(reference, noise="seeded")
+    with pytest.raises(ValueError, match=r"options \['steps'\]"):
+        regression.plan(reference, steps=4)
+    with pytest.raises(ValueError, match="it has no noise to sample"):
+        regression.sample(reference, 3)
+    with pytest.raises(ValueError, match="steps must be a positive integer; got 0"):
+        flow.plan(reference, steps=0)
+    with pytest.raises(ValueError, match=r"unknown plan options \['step'\]"):
+        flow.plan(reference, step=4)
+
+
+def test_a_plan_beyond_the_actuator_range_is_clipped_with_a_counted_warning(dataset, trained):
+    import copy
+
+    model = copy.deepcopy(trained("mlp")[0])
+    with torch.no_grad():
+        model.action_norm.std.mul_(10)  # a model that asks for ten times the actuation
+    controller = control.Controller(model, "mlp")
+    reference = dataset.states[0, :20]
+    with pytest.warns(control.SaturationWarning, match=r"mlp: \d+ of 38 planned u values exceed the actuator range"):
+        u = controller.plan(reference)
+    assert np.abs(u).max() == data.U_MAX
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        plans, _ = control.plan_all(controller, [trajectories.Reference("jump", "shape", reference, np.ones(20, bool))])
+    np.testing.assert_array_equal(plans[0], u)  # evaluations clip silently: saturation is what they measure

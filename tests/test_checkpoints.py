@@ -1,0 +1,83 @@
+"""Checkpoints are found by content: every shipped one loads current, and a model trained
+for another rod, even one that keeps the name of a shipped rod, never touches checkpoints/."""
+import dataclasses
+import hashlib
+import warnings
+
+import numpy as np
+import pytest
+
+from softflow import control, data, train, trajectories
+from softflow.models import resolved_kwargs
+from softflow.profiles import Profile, TrainConfig
+from softflow.robots import HW_ROBOT, SIM_ROBOT
+from softflow.sim import Simulator
+
+RODS = [(SIM_ROBOT, "vertical"), (HW_ROBOT, "vertical"), (HW_ROBOT, "horizontal")]
+TINY = TrainConfig(epochs=1, steps_per_epoch=5, batch_size=32, warmup_steps=2, val_samples=100, patience=1)
+
+
+def shipped_files():
+    return sorted(p for p in train.SHIPPED.rglob("*.pt"))
+
+
+def tree_digest(folder):
+    return {str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(folder.rglob("*"))
+            if p.is_file()}
+
+
+def rod_of(path):
+    folder = path.parent.parent if path.parent.name == "variants" else path.parent
+    matches = [(robot, gravity) for robot, gravity in RODS if train.SHIPPED / train.rod_folder(robot, gravity) == folder]
+    assert len(matches) == 1, f"{path} is in no known rod's folder"
+    return matches[0]
+
+
+@pytest.mark.parametrize("path", shipped_files(), ids=lambda p: str(p.relative_to(train.SHIPPED)))
+def test_every_shipped_checkpoint_is_current_and_plans(path):
+    checkpoint = train.load_checkpoint(path)
+    robot, gravity = rod_of(path)
+    name = checkpoint["name"]
+    default = resolved_kwargs(name)
+    variant = {k: v for k, v in checkpoint["model_kwargs"].items() if v != default[k]}
+    assert train.find_checkpoint(name, "paper", robot, gravity, variant) == (path, True)
+    if name == "forward":
+        return
+    sim = Simulator(robot, gravity)
+    rest = sim.tip_positions(sim.rest_q()[None])[0, 1:]
+    reference = trajectories.shape_reference(sim, "circle", size=0.05, centre=rest).states[:40]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no staleness warning, no saturation
+        controller = (control.load_controller(name, "paper", robot, gravity) if not variant else
+                      control.Controller(train.model_from_checkpoint(checkpoint, path), name, robot=robot,
+                                         gravity=gravity))
+        u = controller.plan(reference)
+    assert u.shape == (39, 2) and np.isfinite(u).all()
+
+
+def test_a_calibrated_rod_with_a_shipped_name_trains_outside_checkpoints(tmp_path, monkeypatch):
+    monkeypatch.setattr(train, "TRAINED", tmp_path / "trained")
+    before = tree_digest(train.SHIPPED)
+    calibrated = dataclasses.replace(HW_ROBOT, youngs_modulus=0.85 * HW_ROBOT.youngs_modulus)  # still named "hw"
+    paper_sized = Profile("paper", n_episodes=10, episode_seconds=0.3, train=TINY)
+    dataset = data.load_dataset(paper_sized, calibrated, "horizontal", data_dir=tmp_path / "data", progress=False)
+    train.ensure_trained("rf-fwd", paper_sized, dataset, calibrated, "horizontal")
+    assert tree_digest(train.SHIPPED) == before
+    folder = tmp_path / "trained" / "paper" / train.rod_folder(calibrated, "horizontal")
+    assert sorted(p.name for p in folder.iterdir()) == ["forward.pt", "rf-fwd.pt"]
+    assert train.rod_folder(calibrated, "horizontal") != train.rod_folder(HW_ROBOT, "horizontal")
+
+
+def test_only_ship_writes_the_shipped_folder(tmp_path, monkeypatch):
+    monkeypatch.setattr(train, "SHIPPED", tmp_path / "shipped")
+    monkeypatch.setattr(train, "TRAINED", tmp_path / "trained")
+    paper_sized = Profile("paper", n_episodes=10, episode_seconds=0.3, train=TINY)
+    dataset = data.load_dataset(paper_sized, data_dir=tmp_path / "data", progress=False)
+    train.ensure_trained("mlp", paper_sized, dataset)
+    assert not (tmp_path / "shipped").exists() and (tmp_path / "trained" / "paper" / "mlp.pt").exists()
+    train.ensure_trained("mlp", paper_sized, dataset, ship=True)
+    assert (tmp_path / "shipped" / "mlp.pt").exists()
+    with pytest.raises(ValueError, match="only paper-profile models ship"):
+        train.checkpoint_path("mlp", "ci", shipped=True)
+    with pytest.raises(ValueError, match="dataset was made for 'sim' / 'vertical', not 'hw' / 'vertical'"):
+        train.ensure_trained("mlp", paper_sized, dataset, HW_ROBOT)

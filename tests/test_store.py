@@ -1,0 +1,58 @@
+"""Cache keys follow the numbers, not the source text; writes are all-or-nothing."""
+import dataclasses
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from softflow import data, sim, store
+from softflow.profiles import get_profile
+from softflow.robots import SIM_ROBOT
+
+PAPER = get_profile("paper")
+
+
+def test_content_key_is_canonical_and_sensitive():
+    assert store.content_key({"a": 1, "b": [2, 3]}) == store.content_key({"b": [2, 3], "a": 1})
+    assert store.content_key({"a": 1}) != store.content_key({"a": 1.0000001})
+    assert len(store.content_key({}, length=8)) == 8
+
+
+def test_a_failed_write_leaves_the_old_file_and_no_temporary(tmp_path):
+    path = tmp_path / "table.csv"
+    store.write_text(path, "old")
+    with pytest.raises(RuntimeError):
+        with store.atomic_write(path, "w") as f:
+            f.write("half")
+            raise RuntimeError("interrupted")
+    assert path.read_text() == "old" and sorted(p.name for p in tmp_path.iterdir()) == ["table.csv"]
+
+
+def test_dataset_key_follows_parameters_and_versions_not_the_name(monkeypatch):
+    key = data.dataset_path(PAPER).stem
+    assert data.dataset_path(PAPER, dataclasses.replace(SIM_ROBOT, name="renamed")).stem == key
+    assert data.dataset_path(PAPER, dataclasses.replace(SIM_ROBOT, density=12001.0)).stem != key
+    assert data.dataset_path(PAPER, gravity="horizontal").stem != key
+    monkeypatch.setattr(sim, "SIMULATOR_VERSION", sim.SIMULATOR_VERSION + 1)
+    assert data.dataset_path(PAPER).stem != key
+    monkeypatch.undo()
+    monkeypatch.setattr(data, "DATA_VERSION", data.DATA_VERSION + 1)
+    assert data.dataset_path(PAPER).stem != key
+
+
+def test_editing_comments_and_docstrings_keeps_the_dataset_key(tmp_path):
+    """A copy of the package with a comment and a docstring edited gives the same key."""
+    package = Path(sim.__file__).parent
+    copy = tmp_path / "softflow"
+    shutil.copytree(package, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    for name in ("sim.py", "data.py", "kinematics.py", "statics.py"):
+        source = (copy / name).read_text()
+        (copy / name).write_text(source.replace('"""', '"""Edited. ', 1) + "\n# an edited comment\n")
+    code = ("from softflow import data; from softflow.profiles import get_profile; "
+            "print(data.__file__); print(data.dataset_path(get_profile('paper')).stem)")
+    out = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, check=True)
+    origin, key = out.stdout.split()
+    assert Path(origin).parent == copy  # the edited copy was imported
+    assert key == data.dataset_path(PAPER).stem
