@@ -22,8 +22,9 @@ $(STAMP): environment.lock pyproject.toml
 	$(PY) -m pip install --quiet --no-deps --no-build-isolation -e .
 	cp environment.lock $(STAMP)
 
+# Two workers: the notebooks in order on one (they build on each other), unit tests on both.
 test: $(STAMP)
-	$(PY) -m pytest tests notebooks --nbval --nbval-current-env --nbval-sanitize-with tests/nbval_sanitize.cfg
+	$(PY) -m pytest tests notebooks -n 2 --dist loadgroup --nbval --nbval-current-env --nbval-sanitize-with tests/nbval_sanitize.cfg
 
 reproduce: $(STAMP)
 	mkdir -p build/notebooks/$(PROFILE)

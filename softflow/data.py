@@ -10,6 +10,7 @@ and rebuilt, never used.
 """
 from __future__ import annotations
 
+import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -153,9 +154,7 @@ def load_dataset(profile: Profile, robot: Robot = SIM_ROBOT, gravity: str = "ver
         states.append(done)
     train, val, test = split_episodes(profile.n_episodes, profile.seed)
     write_npz(path, u=u, states=np.concatenate(states), train=train, val=val, test=test)
-    for block_path in blocks_dir.iterdir():
-        block_path.unlink()
-    blocks_dir.rmdir()
+    shutil.rmtree(blocks_dir, ignore_errors=True)  # another process making the same data may clean up first
     return _dataset_from(read_npz(path), path.stem, robot, gravity)
 
 

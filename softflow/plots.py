@@ -259,7 +259,7 @@ def twin_tracking(runs: dict, references: dict, names, dt: float):
 def images(pictures: dict, columns: int = 2):
     """BGR images (OpenCV order) in a grid, titled by their keys."""
     rows = -(-len(pictures) // columns)
-    fig, axes = plt.subplots(rows, columns, figsize=(5 * columns, 3.9 * rows), squeeze=False)
+    fig, axes = plt.subplots(rows, columns, figsize=(3.8 * columns, 3.0 * rows), squeeze=False)
     for ax in axes.flat:
         ax.axis("off")
     for ax, (title, picture) in zip(axes.flat, pictures.items()):

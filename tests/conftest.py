@@ -27,3 +27,11 @@ def trained(dataset, tmp_path_factory):
         return train.train(name, dataset, QUICK, folder / f"{name}.pt", dependencies=dependencies, progress=False)
 
     return get
+
+
+def pytest_collection_modifyitems(items):
+    """With pytest-xdist (--dist loadgroup) every notebook cell runs on one worker, in order:
+    the notebooks build on each other's results, while the unit tests spread over the rest."""
+    for item in items:
+        if item.nodeid.startswith("notebooks/"):
+            item.add_marker(pytest.mark.xdist_group("notebooks"))

@@ -48,3 +48,13 @@ def test_a_missing_result_names_the_notebook_that_writes_it(profile):
     write_results(profile)
     with pytest.raises(ValueError, match="06_hardware_replay.ipynb"):
         report.table3(profile)
+
+
+def test_the_report_does_not_import_torch():
+    """Tables and the results page need pandas, not the models: a light import."""
+    import subprocess
+    import sys
+
+    code = "import sys, softflow.report; print('torch' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"

@@ -1,0 +1,113 @@
+"""The sweep runner: a cluster gives the rows of a sequential run, a rerun computes nothing,
+a failing cell is named while the others return, and the CLI runs on a cluster someone
+else started (through its scheduler file)."""
+from __future__ import annotations
+
+import dataclasses
+
+import pandas as pd
+import pytest
+from distributed import Client, LocalCluster
+
+from softflow import cli, sweep
+
+
+@pytest.fixture(scope="module")
+def scheduler_file(tmp_path_factory):
+    return tmp_path_factory.mktemp("cluster") / "scheduler.json"
+
+
+@pytest.fixture(scope="module")
+def client(scheduler_file):
+    """Two single-threaded worker processes, shared by the tests (starting one takes seconds).
+    Its scheduler writes ``scheduler_file`` on start, as ``dask scheduler --scheduler-file`` does
+    (``Client.write_scheduler_file`` can fail on worker metrics with tuple keys once tasks ran)."""
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+                      scheduler_kwargs=dict(scheduler_file=str(scheduler_file))) as cluster, Client(cluster) as client:
+        yield client
+
+
+def _flaky_cells(profile_name):
+    return [dict(study="flaky", model="none", seed=seed, condition=condition)
+            for seed, condition in [(0, "ok"), (1, "bad"), (2, "ok")]]
+
+
+def _flaky_run(cell, profile_name, device, workdir, key):
+    if cell["condition"] == "bad":
+        raise RuntimeError("cell exploded")
+    return dict(score=10 * cell["seed"])
+
+
+def _must_not_run(*args):
+    raise AssertionError("run_cell called for a cached cell")
+
+
+def test_cluster_gives_the_rows_of_a_sequential_run(client, tmp_path):
+    sequential = sweep.run_sweep("smoke", "ci", client=None, device="cpu", root=tmp_path / "here", progress=False)
+    distributed = sweep.run_sweep("smoke", "ci", client=client, device="cpu", root=tmp_path / "dask", progress=False)
+    assert sequential.failures == distributed.failures == []
+    assert len(sequential.rows) >= 2 and sequential.rows["seed"].nunique() >= 2
+    pd.testing.assert_frame_equal(sequential.rows, distributed.rows)
+    pd.testing.assert_frame_equal(pd.read_csv(distributed.csv), pd.read_csv(sequential.csv))
+    assert distributed.csv == tmp_path / "dask" / "smoke-ci.csv"
+    assert len(list((tmp_path / "dask" / "smoke" / "models").glob("*.pt"))) == len(distributed.rows)
+
+
+def test_rerun_computes_nothing_and_resumes_a_missing_cell(tmp_path, monkeypatch):
+    first = sweep.run_sweep("smoke", "ci", client=None, device="cpu", root=tmp_path, progress=False)
+    smoke = sweep.STUDIES["smoke"]
+    monkeypatch.setitem(sweep.STUDIES, "smoke", dataclasses.replace(smoke, run_cell=_must_not_run))
+    again = sweep.run_sweep("smoke", "ci", client=None, device="cpu", root=tmp_path, progress=False)
+    assert (again.cached, again.computed, again.failures) == (len(first.rows), 0, [])
+    pd.testing.assert_frame_equal(first.rows, again.rows)
+
+    (tmp_path / "smoke" / f"{first.rows['key'][0]}.json").unlink()  # as if interrupted before this cell finished
+    calls = []
+    monkeypatch.setitem(sweep.STUDIES, "smoke", dataclasses.replace(
+        smoke, run_cell=lambda cell, *args: calls.append(cell) or smoke.run_cell(cell, *args)))
+    resumed = sweep.run_sweep("smoke", "ci", client=None, device="cpu", root=tmp_path, progress=False)
+    assert (resumed.computed, len(calls), resumed.failures) == (1, 1, [])
+    pd.testing.assert_frame_equal(first.rows, resumed.rows)
+
+
+def test_failing_cell_is_named_and_the_others_return(client, tmp_path, monkeypatch, capsys):
+    monkeypatch.setitem(sweep.STUDIES, "flaky", sweep.Study(_flaky_cells, _flaky_run))
+    result = sweep.run_sweep("flaky", "ci", client=client, device="cpu", root=tmp_path, progress=False)
+    assert result.failures == [sweep.Failure(_flaky_cells("ci")[1], "RuntimeError: cell exploded")]
+    assert result.rows["score"].tolist() == [0, 20]
+    assert pd.read_csv(result.csv)["seed"].tolist() == [0, 2]
+
+    # The CLI on the same cluster by address: the good rows come from the cache, the bad cell
+    # runs again, is named on stderr, and the exit status says the sweep is incomplete.
+    monkeypatch.setattr(sweep, "SWEEPS_DIR", tmp_path)
+    with pytest.raises(SystemExit) as exit:
+        cli.main(["sweep", "flaky", "--profile", "ci", "--scheduler", client.scheduler.address, "--device", "cpu"])
+    assert exit.value.code == 1
+    out, err = capsys.readouterr()
+    assert "'condition': 'bad'" in err and "RuntimeError: cell exploded" in err
+    assert "2 cached" in out and out.strip().splitlines()[-1] == str(result.csv)
+
+
+def test_cli_runs_on_a_cluster_through_its_scheduler_file(client, scheduler_file, tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(sweep, "SWEEPS_DIR", tmp_path / "sweeps")
+    cli.main(["sweep", "smoke", "--profile", "ci", "--scheduler-file", str(scheduler_file), "--device", "cpu"])
+    last = capsys.readouterr().out.strip().splitlines()[-1]
+    assert last == str(tmp_path / "sweeps" / "smoke-ci.csv")
+    table = pd.read_csv(last)
+    assert table["u_rmse"].notna().all() and table["u_rmse"].gt(0).all() and len(table) >= 2
+
+
+def test_bad_input_is_refused():
+    with pytest.raises(ValueError, match="study"):
+        sweep.run_sweep("no-such-study", "ci", client=None, device="cpu")
+    with pytest.raises(ValueError, match="profile"):
+        sweep.run_sweep("smoke", "no-such-profile", client=None, device="cpu")
+    with pytest.raises(ValueError, match="device"):
+        sweep.resolve_device("tpu")
+    assert sweep.resolve_device("cpu") == "cpu" and sweep.resolve_device("auto") in ("cuda", "mps", "cpu")
+    for bad in [dict(workers=0), dict(workers=2, scheduler="tcp://127.0.0.1:8786"),
+                dict(scheduler_file="s.json", scheduler="tcp://127.0.0.1:8786")]:
+        with pytest.raises(ValueError), sweep.connect(**bad):
+            pass
+    with pytest.raises(SystemExit):
+        cli.main(["sweep", "smoke", "--profile", "ci", "--workers", "0"])
