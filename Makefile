@@ -22,9 +22,14 @@ $(STAMP): environment.lock pyproject.toml
 	$(PY) -m pip install --quiet --no-deps --no-build-isolation -e .
 	cp environment.lock $(STAMP)
 
-# Two workers: the notebooks in order on one (they build on each other), unit tests on both.
+NBVAL := --nbval --nbval-current-env --nbval-sanitize-with tests/nbval_sanitize.cfg
+# Side by side on the two cores: the notebooks in order in one process (they build on each
+# other's results; their log is printed at the end) and the unit tests in another.
 test: $(STAMP)
-	$(PY) -m pytest tests notebooks -n 2 --dist loadgroup --nbval --nbval-current-env --nbval-sanitize-with tests/nbval_sanitize.cfg
+	mkdir -p build
+	$(PY) -m pytest notebooks $(NBVAL) -p no:cacheprovider > build/nbval.log 2>&1 & \
+	$(PY) -m pytest tests; units=$$?; \
+	wait $$!; notebooks=$$?; cat build/nbval.log; exit $$(( units || notebooks ))
 
 reproduce: $(STAMP)
 	mkdir -p build/notebooks/$(PROFILE)

@@ -28,10 +28,3 @@ def trained(dataset, tmp_path_factory):
 
     return get
 
-
-def pytest_collection_modifyitems(items):
-    """With pytest-xdist (--dist loadgroup) every notebook cell runs on one worker, in order:
-    the notebooks build on each other's results, while the unit tests spread over the rest."""
-    for item in items:
-        if item.nodeid.startswith("notebooks/"):
-            item.add_marker(pytest.mark.xdist_group("notebooks"))

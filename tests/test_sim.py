@@ -79,8 +79,12 @@ def test_u_sign_flip_mirrors_and_u_swap_swaps_axes(random_actuation):
     u = random_actuation[:, :100]
     X, X_neg, X_swap = sim.rollout(u), sim.rollout(-u), sim.rollout(u[..., ::-1])
     mirror = np.array([1, -1, -1, 1, -1, -1])
-    np.testing.assert_allclose(X_neg, X * mirror, atol=1e-9)
-    np.testing.assert_allclose(X_swap, X[..., [0, 2, 1, 3, 5, 4]], atol=1e-9)
+    np.testing.assert_array_equal(X_neg, X * mirror)  # measured: bit-exact
+    # Swapping the axes reorders the arithmetic; the convective term's second difference
+    # amplifies last-bit differences ~1e7-fold (measured 3.9e-10 m, 6e-9 m/s): 2.5x / 5x margin.
+    swapped = X[..., [0, 2, 1, 3, 5, 4]]
+    np.testing.assert_allclose(X_swap[..., :3], swapped[..., :3], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(X_swap[..., 3:], swapped[..., 3:], rtol=0, atol=3e-8)
 
 
 def test_horizontal_sag_matches_the_heavy_elastica():
