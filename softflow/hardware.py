@@ -24,8 +24,6 @@ robot frame, or an RGB-D ``.npz`` in the ``vision.write_rgbd`` format, tracked h
 """
 from __future__ import annotations
 
-import os
-import tempfile
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
@@ -41,6 +39,7 @@ from .data import DT, U_MAX
 from .metrics import peak_speed, tracking_rmse
 from .robots import Robot
 from .sim import Simulator
+from .store import write_text
 
 CABLE_STIFFNESS = 1000.0  # N/m, line + guides + motor mount in series (assumed; docs/assumptions.md)
 PRETENSION = 1.0  # N, the slackest cable's tension: keeps every cable taut
@@ -232,7 +231,7 @@ def write_commands(path, commands, dt: float = DT):
     commands, _ = as_real_array(commands, "commands", (None, None))
     frame = pd.DataFrame(1e3 * commands, columns=[f"l{c + 1}_mm" for c in range(commands.shape[1])])
     frame.insert(0, "time_s", np.arange(len(commands)) * dt)
-    _write_atomic(Path(path), frame.to_csv(index=False, float_format="%.4f"))
+    write_text(Path(path), frame.to_csv(index=False, float_format="%.4f"))
 
 
 def read_commands(path) -> np.ndarray:
@@ -249,16 +248,20 @@ def write_marker_csv(path, times, positions):
     positions, _ = as_real_array(positions, "positions", (len(times), 3))
     frame = pd.DataFrame(positions, columns=["x_m", "y_m", "z_m"])
     frame.insert(0, "time_s", np.asarray(times, float))
-    _write_atomic(Path(path), frame.to_csv(index=False, float_format="%.6f"))
+    write_text(Path(path), frame.to_csv(index=False, float_format="%.6f"))
 
 
 def load_recording(path):
     """A run of a real (or twin) robot -> (times (K,), marker positions (K, 3)) in the robot
-    frame: a marker CSV as is, an RGB-D .npz through the same tracking as the twin."""
-    path = Path(path)
+    frame: a marker CSV as is, an RGB-D .npz through the same tracking as the twin. Times
+    must be finite and strictly increasing; a bad file is a ValueError naming it (and the
+    data row, counted from 1 below the header)."""
+    path = _existing_file(path)
     if path.suffix == ".npz":
         times, frames, camera = vision.read_rgbd(path)
-        return np.asarray(times, float), vision.track(frames, camera)
+        times = np.asarray(times, float)
+        _check_increasing(path, "times", times)
+        return times, vision.track(frames, camera)
     frame = _read_csv(path, "time_s")
     missing = {"x_m", "y_m", "z_m"} - set(frame.columns)
     if missing:
@@ -266,21 +269,41 @@ def load_recording(path):
     return frame.time_s.to_numpy(float), frame[["x_m", "y_m", "z_m"]].to_numpy(float)
 
 
-def _read_csv(path: Path, first: str) -> pd.DataFrame:
-    if not path.exists():
+def _existing_file(path) -> Path:
+    path = Path(path)
+    if path.is_dir():
+        raise ValueError(f"{path} is a directory; expected a recording or command file")
+    if not path.is_file():
         raise ValueError(f"no such file: {path}")
+    return path
+
+
+def _read_csv(path: Path, first: str) -> pd.DataFrame:
+    """A CSV of finite numbers whose column ``first`` (time) increases strictly."""
+    path = _existing_file(path)
     try:
         frame = pd.read_csv(path)
     except (pd.errors.ParserError, UnicodeDecodeError, pd.errors.EmptyDataError) as error:
         raise ValueError(f"{path} is not a readable CSV: {error}") from error
-    if first not in frame.columns or frame.isna().any().any():
-        raise ValueError(f"{path}: expected a '{first}' column and no missing values")
+    if first not in frame.columns:
+        raise ValueError(f"{path}: expected a '{first}' column; got {list(frame.columns)}")
+    if frame.empty:
+        raise ValueError(f"{path}: has a header but no samples")
+    for column in frame.columns:
+        values = pd.to_numeric(frame[column], errors="coerce").to_numpy(float)
+        bad = np.flatnonzero(~np.isfinite(values))
+        if len(bad):
+            raise ValueError(f"{path}: data row {bad[0] + 1}, column {column!r}: '{frame[column].iloc[bad[0]]}' "
+                             f"is not a finite number")
+        frame[column] = values
+    _check_increasing(path, first, frame[first].to_numpy())
     return frame
 
 
-def _write_atomic(path: Path, text: str):
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-    with os.fdopen(fd, "w") as f:
-        f.write(text)
-    os.replace(tmp, path)
+def _check_increasing(path: Path, name: str, times: np.ndarray):
+    """Time must run forwards without repeats: a recording's samples are in order."""
+    backwards = np.flatnonzero(np.diff(times) <= 0)
+    if len(backwards):
+        row = backwards[0] + 2  # data rows from 1: the second of the offending pair
+        raise ValueError(f"{path}: {name} must increase strictly; data row {row} ({times[row - 1]:g}) does not "
+                         f"follow row {row - 1} ({times[row - 2]:g})")

@@ -38,6 +38,7 @@ from scipy.interpolate import make_interp_spline
 
 from .checks import as_real_array
 from .robots import HW_ROBOT
+from .store import atomic_write
 
 _WALL = (200, 205, 210)  # BGR of the light background wall
 _ROD = (60, 60, 60)  # BGR of the dark-grey rod
@@ -290,34 +291,28 @@ def write_rgbd(path, times, frames, camera: Camera) -> None:
     """Save a recording (format: module docstring) from an iterable of (color, depth) frames.
 
     Frames are streamed to disk, never all in memory; the file appears only when
-    complete (temp file in the same folder, then ``os.replace``).
+    complete (``store.atomic_write``).
     """
     times, _ = as_real_array(times, "times", (None,))
     shape = (len(times), camera.height, camera.width)
-    fd, tmp = tempfile.mkstemp(suffix=".tmp", dir=os.path.dirname(os.path.abspath(path)))
-    os.close(fd)
-    try:
-        with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as archive, tempfile.TemporaryFile() as depths:
-            for name in ("times", *_CAMERA_KEYS):
-                with archive.open(f"{name}.npy", "w") as member:
-                    np.lib.format.write_array(member, np.asarray(times if name == "times" else getattr(camera, name)))
-            count = 0
-            with archive.open("color.npy", "w", force_zip64=True) as member:
-                _write_header(member, np.uint8, shape + (3,))
-                for count, (color, depth) in enumerate(itertools.islice(frames, len(times) + 1), 1):
-                    _check_frame(count - 1, color, depth, camera)
-                    member.write(color.tobytes())
-                    depths.write(depth.astype(_DEPTH).tobytes())
-            if count != len(times):
-                raise ValueError(f"frames must number len(times) = {len(times)}; got {'more' if count > len(times) else count}")
-            depths.seek(0)
-            with archive.open("depth.npy", "w", force_zip64=True) as member:
-                _write_header(member, _DEPTH, shape)
-                shutil.copyfileobj(depths, member)
-        os.replace(tmp, path)
-    except BaseException:
-        os.unlink(tmp)
-        raise
+    with atomic_write(path) as f, zipfile.ZipFile(f, "w", zipfile.ZIP_DEFLATED) as archive, \
+            tempfile.TemporaryFile() as depths:
+        for name in ("times", *_CAMERA_KEYS):
+            with archive.open(f"{name}.npy", "w") as member:
+                np.lib.format.write_array(member, np.asarray(times if name == "times" else getattr(camera, name)))
+        count = 0
+        with archive.open("color.npy", "w", force_zip64=True) as member:
+            _write_header(member, np.uint8, shape + (3,))
+            for count, (color, depth) in enumerate(itertools.islice(frames, len(times) + 1), 1):
+                _check_frame(count - 1, color, depth, camera)
+                member.write(color.tobytes())
+                depths.write(depth.astype(_DEPTH).tobytes())
+        if count != len(times):
+            raise ValueError(f"frames must number len(times) = {len(times)}; got {'more' if count > len(times) else count}")
+        depths.seek(0)
+        with archive.open("depth.npy", "w", force_zip64=True) as member:
+            _write_header(member, _DEPTH, shape)
+            shutil.copyfileobj(depths, member)
 
 
 def read_rgbd(path):

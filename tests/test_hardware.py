@@ -93,6 +93,41 @@ def test_recordings_load_from_a_marker_csv_and_from_rgbd_frames(tmp_path):
     assert np.sqrt(np.mean(np.sum((tracked - tips) ** 2, axis=1))) < 1e-3
 
 
+MARKER_HEADER = "time_s,x_m,y_m,z_m\n"
+
+
+@pytest.mark.parametrize("rows, message", [
+    ("0.0,0.4,0,0\n0.033,inf,0,0\n", r"bad\.csv: data row 2, column 'x_m': 'inf' is not a finite number"),
+    ("0.0,0.4,0,0\ninf,0.4,0,0\n", r"bad\.csv: data row 2, column 'time_s': 'inf' is not a finite number"),
+    ("0.0,0.4,0,0\n0.033,0.4,abc,0\n", r"bad\.csv: data row 2, column 'y_m': 'abc' is not a finite number"),
+    ("0.0,0.4,0,0\n0.033,0.4,,0\n", r"bad\.csv: data row 2, column 'y_m': 'nan' is not a finite number"),
+    ("0.0,0.4,0,0\n0.066,0.4,0,0\n0.033,0.4,0,0\n",
+     r"bad\.csv: time_s must increase strictly; data row 3 \(0\.033\) does not follow row 2 \(0\.066\)"),
+    ("0.0,0.4,0,0\n0.033,0.4,0,0\n0.033,0.4,0,0\n", r"data row 3 \(0\.033\) does not follow row 2 \(0\.033\)"),
+    ("", r"bad\.csv: has a header but no samples"),
+])
+def test_a_bad_marker_recording_names_the_file_and_the_row(tmp_path, rows, message):
+    path = tmp_path / "bad.csv"
+    path.write_text(MARKER_HEADER + rows)
+    with pytest.raises(ValueError, match=message):
+        hardware.load_recording(path)
+
+
+def test_a_missing_recording_or_a_directory_is_a_value_error_in_both_formats(tmp_path):
+    for name in ("missing.csv", "missing.npz"):
+        with pytest.raises(ValueError, match=f"no such file: .*{name}"):
+            hardware.load_recording(tmp_path / name)
+    with pytest.raises(ValueError, match="is a directory; expected a recording"):
+        hardware.load_recording(tmp_path)
+
+
+def test_command_files_need_increasing_time(tmp_path):
+    path = tmp_path / "commands.csv"
+    path.write_text("time_s,l1_mm,l2_mm,l3_mm\n0.00,1,2,3\n0.00,1,2,3\n")
+    with pytest.raises(ValueError, match="time_s must increase strictly; data row 2"):
+        hardware.read_commands(path)
+
+
 def test_sag_calibration_recovers_the_plants_rho_over_e():
     """A plant with E -15 % and rho +10 %: statics see only rho / E, so the calibrated rod's
     E is nominal x 0.85 / 1.10 and its rest tip matches the plant's."""
