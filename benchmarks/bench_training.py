@@ -16,9 +16,10 @@ from pathlib import Path
 
 from results_file import write_results
 from softflow import data, train
+from softflow.models import model_spec
 from softflow.profiles import get_profile
 
-MODELS = ("mlp", "lstm", "transformer", "rf", "rf-physical", "rf-fwd")
+MODELS = ("mlp", "lstm", "transformer", "rf", "rf-physical", "forward", "rf-fwd")  # RF-FWD needs its surrogate
 
 
 def main():
@@ -29,18 +30,19 @@ def main():
     profile = get_profile(args.profile)
     dataset = data.load_dataset(profile, progress=False)
     results = dict(profile=profile.name, epochs_timed=args.epochs, models={})
+    trained = {}
     with tempfile.TemporaryDirectory() as scratch:
         for name in MODELS:
             budget = profile.train_config(name)
             timed = dataclasses.replace(budget, epochs=args.epochs, patience=args.epochs)
-            train.train(name, dataset, timed, Path(scratch) / f"{name}.pt", progress=False)
-            for timed_name in (["forward"] if name == "rf-fwd" else []) + [name]:
-                checkpoint = train.load_checkpoint(Path(scratch) / f"{timed_name}.pt")
-                per_epoch = checkpoint["wall_seconds"] / checkpoint["epochs_run"]
-                results["models"][timed_name] = dict(seconds_per_epoch=per_epoch, budget_epochs=budget.epochs,
-                                                     full_budget_minutes=per_epoch * budget.epochs / 60)
-                print(f"{timed_name:12s} {per_epoch:6.2f} s/epoch x {budget.epochs:3d} epochs = "
-                      f"{per_epoch * budget.epochs / 60:5.1f} min for the full budget")
+            dependencies = {dep: trained[dep] for dep in model_spec(name).requires}
+            trained[name], checkpoint = train.train(name, dataset, timed, Path(scratch) / f"{name}.pt",
+                                                    dependencies=dependencies, progress=False)
+            per_epoch = checkpoint["wall_seconds"] / checkpoint["epochs_run"]
+            results["models"][name] = dict(seconds_per_epoch=per_epoch, budget_epochs=budget.epochs,
+                                           full_budget_minutes=per_epoch * budget.epochs / 60)
+            print(f"{name:12s} {per_epoch:6.2f} s/epoch x {budget.epochs:3d} epochs = "
+                  f"{per_epoch * budget.epochs / 60:5.1f} min for the full budget")
     write_results("training", results)
     return 0
 
