@@ -1,10 +1,12 @@
-"""Planning latency of the RF family, side by side in one run (make bench):
+"""Planning latency, side by side in one run (make bench):
 
-- per control step at batch 1 (one transition, N Euler steps): plain eager torch vs the
-  lean numpy sampler (LeanFlow), median and p99 over 2000 calls each;
+- the real-time step, ``Controller.step(x_t, x_next)`` at batch 1, for the MLP and every RF
+  variant, beside the model's eager torch ``predict`` of the same transition;
+- per control step of RF-FWD for N = 1..20 Euler steps: eager torch vs the lean numpy
+  sampler (LeanFlow), median and p99 over 2000 calls each;
 - a whole 500-step trajectory planned in one batched call (Controller.plan).
 
-Uses the profile's trained rf-fwd (default: ci; trains it first if missing).
+Uses the profile's trained models (default: ci; trains them first if missing).
 Writes benchmarks/results/planning.json and prints a summary.
 """
 from __future__ import annotations
@@ -31,12 +33,24 @@ def main():
     args = parser.parse_args()
     profile = get_profile(args.profile)
     dataset = data.load_dataset(profile, progress=False)
-    model, _ = train.ensure_trained(args.model, profile, dataset)  # the shipped model, or trained with its budget
-    lean = LeanFlow(model)
     window = dataset.states[dataset.test[0], 100:102][None]  # one transition (1, 2, 6)
     z = np.zeros((1, 2))
     window_t, z_t = torch.as_tensor(window, dtype=torch.float32), torch.as_tensor(z, dtype=torch.float32)
-    results = dict(model=args.model, profile=profile.name, per_step={})
+    results = dict(model=args.model, profile=profile.name, step={}, per_step={})
+    for name in ("mlp", "rf", "rf-physical", "rf-fwd"):
+        controller = control.Controller(train.ensure_trained(name, profile, dataset)[0], name)
+        extras = {k: torch.as_tensor(v[0], dtype=torch.float32)
+                  for k, v in controller.model.extras(window, controller.statics).items()}
+        noise = {"noise": z_t} if controller.generative else {}
+        with torch.inference_mode(), one_thread():
+            eager = metrics.latency(lambda: controller.model.predict(window_t, **extras, **noise), repeats=args.repeats)
+        step = metrics.latency(controller.step, window[0, 0], window[0, 1], repeats=args.repeats)
+        results["step"][name] = dict(eager_ms={k: 1e3 * v for k, v in eager.items()},
+                                     step_ms={k: 1e3 * v for k, v in step.items()})
+        print(f"{name:12s} step: median {1e3 * step['median']:.3f} ms (p99 {1e3 * step['p99']:.3f}); "
+              f"eager torch median {1e3 * eager['median']:.3f} ms (p99 {1e3 * eager['p99']:.3f})")
+    model, _ = train.ensure_trained(args.model, profile, dataset)  # the shipped model, or trained with its budget
+    lean = LeanFlow(model)
     with torch.inference_mode(), one_thread():
         for steps in (1, 2, 4, 10, 20):
             eager = metrics.latency(model.predict, window_t, None, z_t, steps, repeats=args.repeats)

@@ -11,8 +11,9 @@ import torch
 from .checks import as_real_array, check_choice
 from .data import DT, U_MAX
 from .metrics import actuation_mae, input_energy, phase_lag, tracking_rmse
+from .models.baselines import InverseMLP, LeanMLP
 from .models.common import one_thread
-from .models.flow import RectifiedFlow
+from .models.flow import LeanFlow, RectifiedFlow
 from .robots import SIM_ROBOT, Robot
 from .sim import Simulator
 from .train import find_checkpoint, gather_windows, load_checkpoint, model_from_checkpoint
@@ -44,6 +45,30 @@ class Controller:
         self.model, self.name, self.seed = model.eval(), name, seed
         self.generative = isinstance(model, RectifiedFlow)
         self.statics = Simulator(robot, gravity).static_table() if model.needs_statics else None
+        self.lean = LeanFlow(model) if self.generative else LeanMLP(model) if isinstance(model, InverseMLP) else None
+
+    def step(self, x_t, x_next) -> np.ndarray:
+        """u_t for one transition, (6,), (6,) -> (2,), or a batch, (B, 6), (B, 6) -> (B, 2): the
+        real-time path (plain numpy, no autograd), the same u as ``plan`` to about 1e-5 N.
+        A flow starts from z = 0, as ``plan`` does. u beyond the actuator range is clipped,
+        with a ``SaturationWarning``. Models that read a window of past states (LSTM,
+        Transformer) have no step: ``plan`` them."""
+        if self.lean is None:
+            raise ValueError(f"{self.name} reads a window of {self.model.context} past transitions: it has no "
+                             f"one-transition step; use plan")
+        x, unbatched = as_real_array(x_t, "x_t", (None, 6), allow_unbatched=True)
+        x_next, _ = as_real_array(x_next, "x_next", x.shape[1:] if unbatched else x.shape)
+        window = np.stack([x, x_next[None] if unbatched else x_next], 1)
+        if self.generative:
+            prior = self.statics.inverse(window[:, 1, :3]) if self.statics is not None else None
+            u = self.lean.predict(window, np.zeros((len(window), 2)), prior)
+        else:
+            u = self.lean.predict(window)
+        if np.abs(u).max() > U_MAX:
+            warnings.warn(f"{self.name}: {int(np.sum(np.abs(u) > U_MAX))} of {u.size} stepped u values exceed the "
+                          f"actuator range +-{U_MAX} N and were clipped", SaturationWarning, stacklevel=2)
+        u = np.clip(u.astype(np.float64), -U_MAX, U_MAX)
+        return u[0] if unbatched else u
 
     def plan(self, reference, *, noise: str = "zero", seed: int | None = None, n_samples: int = 1,
              **options) -> np.ndarray:

@@ -174,3 +174,27 @@ def test_a_plan_beyond_the_actuator_range_is_clipped_with_a_counted_warning(data
         warnings.simplefilter("error")
         plans, _ = control.plan_all(controller, [trajectories.Reference("jump", "shape", reference, np.ones(20, bool))])
     np.testing.assert_array_equal(plans[0], u)  # evaluations clip silently: saturation is what they measure
+
+
+@pytest.mark.parametrize("name", ["mlp", "rf", "rf-physical", "rf-fwd"])
+def test_step_gives_the_planned_u_of_each_transition(name, dataset, trained):
+    controller = control.Controller(trained(name)[0], name)
+    states = dataset.states[dataset.test[0], :60]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", control.SaturationWarning)
+        planned = controller.plan(states)
+        stepped = controller.step(states[:-1], states[1:])  # a batch of transitions
+        single = controller.step(states[10], states[11])  # one transition
+    np.testing.assert_allclose(stepped, planned, atol=1e-5)
+    assert single.shape == (2,)
+    np.testing.assert_allclose(single, planned[10], atol=1e-5)
+
+
+def test_step_checks_its_input_and_needs_a_per_step_model(dataset, trained):
+    controller = control.Controller(trained("mlp")[0], "mlp")
+    with pytest.raises(ValueError, match=r"x_next must have shape \(6\)"):
+        controller.step(np.zeros(6), np.zeros(5))
+    with pytest.raises(ValueError, match="x_t must be finite"):
+        controller.step(np.full(6, np.nan), np.zeros(6))
+    with pytest.raises(ValueError, match="lstm reads a window of 10 past transitions"):
+        control.Controller(trained("lstm")[0], "lstm").step(np.zeros(6), np.zeros(6))

@@ -5,7 +5,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from .common import InverseModel, mlp
+from .common import InverseModel, LeanModel, mlp
 
 
 class _Regression(InverseModel):
@@ -25,6 +25,20 @@ class InverseMLP(_Regression):
 
     def forward(self, window):
         return self.net(self.features(window[:, -2:])[:, 0])
+
+
+class LeanMLP(LeanModel):
+    """``InverseMLP.predict`` in plain numpy float32, for the real-time step (same u to ~1e-6 N)."""
+
+    def __init__(self, model: InverseMLP):
+        super().__init__(model, model.net)
+
+    def predict(self, window):
+        """u (B, 2) for state windows (B, 2, 6) [x_t, x_{t+1}]."""
+        h = self.features(window)
+        for k, (w, b) in enumerate(self.weights):
+            h = (self.silu(h) if k else h) @ w + b
+        return h * self.buffers["action_norm.std"] + self.buffers["action_norm.mean"]
 
 
 class InverseLSTM(_Regression):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from contextlib import contextmanager
 
+import numpy as np
 import torch
 from torch import nn
 
@@ -93,3 +94,26 @@ def mlp(sizes, activation=nn.SiLU) -> nn.Sequential:
         if i < len(sizes) - 2:
             layers.append(activation())
     return nn.Sequential(*layers)
+
+
+class LeanModel:
+    """What the lean numpy samplers share: the trained normalisers as float32 arrays and the
+    model's linear layers as (W^T, b), for real-time steps without autograd or dispatch."""
+
+    def __init__(self, model: InverseModel, net: nn.Sequential):
+        self.buffers = {name: b.detach().numpy() for name, b in model.named_buffers()}
+        self.weights = [(np.ascontiguousarray(m.weight.detach().numpy().T), m.bias.detach().numpy())
+                        for m in net if isinstance(m, nn.Linear)]
+
+    def _normalize(self, name, x):
+        return (x - self.buffers[f"{name}.mean"]) / self.buffers[f"{name}.std"]
+
+    def features(self, window):
+        """[x_t, x_{t+1} - x_t] of state windows (B, 2, 6), normalised: (B, 12) float32."""
+        window = np.asarray(window, dtype=np.float32)
+        x, x_next = window[:, -2], window[:, -1]
+        return np.concatenate([self._normalize("state_norm", x), self._normalize("delta_norm", x_next - x)], -1)
+
+    @staticmethod
+    def silu(h):
+        return h / (1 + np.exp(-h))

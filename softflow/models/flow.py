@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from .common import InverseModel, Normalizer, mlp
+from .common import InverseModel, LeanModel, Normalizer, mlp
 from .forward import ForwardModel
 
 
@@ -110,7 +110,7 @@ class RectifiedFlow(InverseModel):
         return u + prior if self.prior else u
 
 
-class LeanFlow:
+class LeanFlow(LeanModel):
     """The same sampler as ``RectifiedFlow.predict`` in plain numpy, for low-latency planning.
 
     Fuses what the Euler loop repeats: the condition's contribution to the first layer is
@@ -119,21 +119,14 @@ class LeanFlow:
     matmul time of float64); gives the torch model's u to about 1e-6 N."""
 
     def __init__(self, model: RectifiedFlow):
-        linear = [m for m in model.net if isinstance(m, torch.nn.Linear)]
-        self.weights = [(np.ascontiguousarray(m.weight.detach().numpy().T), m.bias.detach().numpy()) for m in linear]
+        super().__init__(model, model.net)
         first, _ = self.weights[0]
         self.w_xi, self.w_tau, self.w_condition = first[:2], first[2], first[3:]
-        buffers = {name: b.numpy() for name, b in model.named_buffers()}
-        self.buffers, self.prior, self.steps = buffers, model.prior, model.steps
-
-    def _normalize(self, name, x):
-        return (x - self.buffers[f"{name}.mean"]) / self.buffers[f"{name}.std"]
+        self.prior, self.steps = model.prior, model.steps
 
     def predict(self, window: np.ndarray, noise: np.ndarray, prior: np.ndarray | None = None, steps: int | None = None):
         """u (B, 2) for state windows (B, 2, 6) [x_t, x_{t+1}] and noise z (B, 2)."""
-        window = np.asarray(window, dtype=np.float32)
-        x, x_next = window[:, -2], window[:, -1]
-        condition = [self._normalize("state_norm", x), self._normalize("delta_norm", x_next - x)]
+        condition = [self.features(window)]
         if self.prior:
             prior = np.asarray(prior, dtype=np.float32)
             condition.append(self._normalize("prior_norm", prior))
@@ -142,8 +135,7 @@ class LeanFlow:
         for k in range(n):
             h = xi @ self.w_xi + (k / n) * self.w_tau + first_bias
             for w, b in self.weights[1:]:
-                h = h / (1 + np.exp(-h))  # SiLU
-                h = h @ w + b
+                h = self.silu(h) @ w + b
             xi = xi + h / n
         target = "residual_norm" if self.prior else "action_norm"
         u = xi * self.buffers[f"{target}.std"] + self.buffers[f"{target}.mean"]
