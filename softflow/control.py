@@ -207,13 +207,19 @@ def evaluate_many(controllers, references, sim: Simulator, u_limit: float = U_MA
     for name, plans, outcomes in zip(names, planned, achieved):
         for r, u, X in zip(references, plans, outcomes):
             X = X[: r.n_steps + 1]
-            masked = r.mask
-            row = dict(model=name, reference=r.name, family=r.family,
-                       rmse_mm=1e3 * tracking_rmse(X, r.states, masked),
-                       phase_lag_s=phase_lag(X[masked, 1:3], r.states[masked, 1:3], DT),
-                       input_energy=input_energy(u, DT))
-            if r.u_true is not None:
-                row["mae_u1"], row["mae_u2"] = actuation_mae(u, r.u_true)
-            rows.append(row)
+            rows.append(score(name, r, u, X))
             runs[name][r.name] = dict(u=u, states=X)
     return pd.DataFrame(rows), runs
+
+
+def score(name: str, reference, u, achieved) -> dict:
+    """One row of Tables I and II: a plan ``u`` (T, 2) of ``name`` that ran to ``achieved``
+    (T+1, 6), scored on the reference's masked samples."""
+    masked = reference.mask
+    row = dict(model=name, reference=reference.name, family=reference.family,
+               rmse_mm=1e3 * tracking_rmse(achieved, reference.states, masked),
+               phase_lag_s=phase_lag(achieved[masked, 1:3], reference.states[masked, 1:3], DT),
+               input_energy=input_energy(u, DT))
+    if reference.u_true is not None:
+        row["mae_u1"], row["mae_u2"] = actuation_mae(u, reference.u_true)
+    return row

@@ -1,12 +1,14 @@
 """Sweeps: a study's grid of independent cells (model, seed, condition, ...), one Dask task
-per cell, each result row cached by the content key of what made it.
+per cell, each cell's result rows cached by the content key of what made them.
 
 A rerun loads the cached rows and computes only the missing cells, so an interrupted sweep
 resumes where it stopped; a cell that raises is reported by name while the others still
-return. Rows are gathered into one tidy CSV, ``data/sweeps/<study>-<profile>.csv``.
-Without a running cluster the cells run on a ``LocalCluster`` of single-threaded worker
-processes; ``client=None`` runs them in this process, one after another (for debugging).
-A new study is one entry in ``STUDIES``.
+return. Rows are gathered into one tidy CSV, ``data/sweeps/<study>-<profile>.csv``; the
+paper profile's also ships, as ``figures/sweeps/<study>-paper.csv``, and its rows count as
+cached wherever their keys match, so a fresh clone recomputes nothing (``shipped=False``
+recomputes them). Without a running cluster the cells run on a ``LocalCluster`` of
+single-threaded worker processes; ``client=None`` runs them in this process, one after
+another (for debugging). The studies themselves live in ``studies``.
 """
 from __future__ import annotations
 
@@ -14,7 +16,6 @@ import json
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 import pandas as pd
@@ -23,30 +24,14 @@ from dask.system import CPU_COUNT
 from distributed import Client, LocalCluster, as_completed
 from tqdm import tqdm
 
-from . import data, train
 from .checks import check_choice
-from .profiles import DATA_DIR, Profile, TrainConfig, get_profile
+from .profiles import DATA_DIR, REPO, get_profile
 from .store import content_key, write_text
+from .studies import STUDIES, Study  # noqa: F401 (Study: the type of a STUDIES entry)
 
 SWEEPS_DIR = DATA_DIR / "sweeps"  # cached rows, the study's datasets and models, result CSVs
+SHIPPED_RESULTS = REPO / "figures" / "sweeps"  # the paper profile's rows, committed
 DEVICES = ("auto", "cpu", "cuda", "mps")
-
-
-@dataclass(frozen=True)
-class Study:
-    """A grid of cells and the function that turns one cell into measurements.
-
-    ``cells(profile_name)``: JSON-able dicts, each naming its study, model, seed and condition.
-    ``run_cell(cell, profile_name, device, workdir, key)``: a dict of JSON-able measurements
-    that depends on nothing but its arguments (its row is cached by them). ``workdir`` is the
-    study's folder, for files cells share (datasets) or own (name those by ``key``).
-    ``version``: bump it when a change alters the numbers run_cell returns; every cached row
-    of the study is then recomputed.
-    """
-
-    cells: Callable[[str], list[dict]]
-    run_cell: Callable[[dict, str, str, Path, str], dict]
-    version: int = 1
 
 
 @dataclass(frozen=True)
@@ -58,9 +43,9 @@ class Failure:
 @dataclass(frozen=True)
 class SweepResult:
     csv: Path  # the rows that succeeded, in grid order
-    rows: pd.DataFrame
+    rows: pd.DataFrame  # one or more per cell
     failures: list[Failure]
-    cached: int  # rows loaded from the cache
+    cached: int  # cells whose rows came from the cache
     computed: int  # cells run (or attempted) this time
 
 
@@ -105,16 +90,18 @@ def cell_key(study: str, cell: dict, profile_name: str, device: str) -> str:
 
 
 def run_sweep(study: str, profile_name: str, *, client: Client | None, device: str = "auto",
-              root: Path | str | None = None, progress: bool = True) -> SweepResult:
-    """Run every cell of ``study`` that has no cached row, on ``client``'s cluster (``None``:
+              root: Path | str | None = None, shipped: bool = True, progress: bool = True) -> SweepResult:
+    """Run every cell of ``study`` that has no cached rows, on ``client``'s cluster (``None``:
     here, one after another), and write the tidy CSV of all rows.
 
-    ``root``: the sweep cache (default ``data/sweeps``). ``device`` is resolved where the
-    cells run (on a worker of the cluster). A failing cell becomes a ``Failure`` in the result;
-    the rows of the others are cached and written.
+    ``root``: the sweep cache (default ``data/sweeps``; only the default one reads and writes
+    the shipped paper rows, and only with ``shipped``). ``device`` is resolved where the cells
+    run (on a worker of the cluster). A failing cell becomes a ``Failure`` in the result; the
+    rows of the others are cached and written.
     """
     check_choice(study, "study", STUDIES)
     get_profile(profile_name)
+    shipped_csv = SHIPPED_RESULTS / f"{study}-{profile_name}.csv" if root is None and profile_name == "paper" else None
     root = Path(SWEEPS_DIR if root is None else root)
     workdir = root / study
     device = resolve_device(device) if client is None else client.submit(resolve_device, device, pure=False).result()
@@ -123,7 +110,8 @@ def run_sweep(study: str, profile_name: str, *, client: Client | None, device: s
     if len(set(keys)) != len(keys):
         raise ValueError(f"study {study!r} yields duplicate cells for profile {profile_name!r}")
 
-    rows = {key: row for key in keys if (row := _cached_row(workdir / f"{key}.json")) is not None}
+    rows = _shipped_rows(shipped_csv, keys) if shipped and shipped_csv is not None else {}
+    rows.update({key: cached for key in keys if (cached := _cached_rows(workdir / f"{key}.json")) is not None})
     missing = [(key, cell) for key, cell in zip(keys, cells) if key not in rows]
     failures = []
     bar = tqdm(total=len(cells), initial=len(rows), desc=f"sweep {study}", unit="cell", disable=not progress)
@@ -136,18 +124,34 @@ def run_sweep(study: str, profile_name: str, *, client: Client | None, device: s
         bar.update(1)
     bar.close()
 
-    table = pd.DataFrame([rows[key] for key in keys if key in rows])
+    table = pd.DataFrame([row for key in keys for row in rows.get(key, [])])
     csv = root / f"{study}-{profile_name}.csv"
     write_text(csv, table.to_csv(index=False))
+    # The shipped rows are replaced only by a superset: these rows include them unless the
+    # sweep recomputed (shipped=False) and has not finished.
+    if shipped_csv is not None and len(table) and (shipped or len(rows) == len(keys)):
+        write_text(shipped_csv, table.to_csv(index=False))
     return SweepResult(csv, table, failures, cached=len(cells) - len(missing), computed=len(missing))
 
 
-def _cached_row(path: Path) -> dict | None:
-    """A cached row, or None when it is missing or unreadable (then the cell runs again)."""
+def _cached_rows(path: Path) -> list[dict] | None:
+    """A cell's cached rows, or None when they are missing or unreadable (then it runs again)."""
     try:
-        return json.loads(path.read_text())
+        rows = json.loads(path.read_text())
     except (OSError, ValueError):
         return None
+    return rows if isinstance(rows, list) else None
+
+
+def _shipped_rows(csv: Path, keys) -> dict:
+    """{key: rows} of the shipped CSV's cells that are in ``keys`` (rows of an older grid or
+    version are left out); {} without the file."""
+    if not csv.exists():
+        return {}
+    table = pd.read_csv(csv)
+    table = table[table["key"].isin(keys)]
+    return {key: [{k: v for k, v in row.items() if not (isinstance(v, float) and np.isnan(v))}
+                  for row in group.to_dict("records")] for key, group in table.groupby("key", sort=False)}
 
 
 def _outcomes(study: str, missing, profile_name: str, device: str, workdir: Path, client: Client | None):
@@ -174,40 +178,11 @@ def _outcomes(study: str, missing, profile_name: str, device: str, workdir: Path
 
 
 def _row(run_cell, cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> str:
-    """One cell's row as JSON text, made where the cell runs: a row that is not JSON-able
-    fails its own cell, and a fresh row reads back exactly like a cached one."""
+    """One cell's rows as JSON text (a list), made where the cell runs: rows that are not
+    JSON-able fail their own cell, and fresh rows read back exactly like cached ones."""
     measured = run_cell(cell, profile_name, device, workdir, key)
     fields = {**cell, "profile": profile_name, "device": device, "key": key}
-    if clash := sorted(set(measured) & set(fields)):
+    rows = [measured] if isinstance(measured, dict) else list(measured)
+    if clash := sorted({name for row in rows for name in row} & set(fields)):
         raise ValueError(f"run_cell returned columns {clash} that name the cell")
-    return json.dumps({**fields, **measured})
-
-
-# ---------------------------------------------------------------------------- studies
-SMOKE_DATA = Profile("smoke", n_episodes=20, episode_seconds=1.0)  # 16 / 2 / 2 episodes: train / val / test
-
-
-def _smoke_cells(profile_name: str) -> list[dict]:
-    return [dict(study="smoke", model="mlp", hidden=16, seed=seed, condition="tiny") for seed in (0, 1)]
-
-
-def _smoke_run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> dict:
-    """A tiny MLP on a tiny dataset, scored per step on the test episodes: seconds per cell,
-    the same for every profile (it tries the machinery, not the science)."""
-    dataset = data.load_dataset(SMOKE_DATA, data_dir=workdir / "data", progress=False)  # shared; safe to race
-    config = TrainConfig(epochs=2, steps_per_epoch=20, batch_size=64, warmup_steps=5, val_samples=200,
-                         seed=cell["seed"])
-    model, checkpoint = train.train(cell["model"], dataset, config, workdir / "models" / f"{key}.pt",
-                                    model_kwargs={"hidden": cell["hidden"]}, device=device, progress=False)
-    n_steps = dataset.u.shape[1]
-    episodes, steps = np.repeat(dataset.test, n_steps), np.tile(np.arange(n_steps), len(dataset.test))
-    window = torch.as_tensor(train.gather_windows(dataset.states, episodes, steps, model.context), dtype=torch.float32)
-    with torch.no_grad():
-        u_hat = model.predict(window).numpy()
-    return dict(best_val=float(checkpoint["best_val"]), epochs_run=int(checkpoint["epochs_run"]),
-                u_rmse=float(np.sqrt(np.mean((u_hat - dataset.u[episodes, steps]) ** 2))))
-
-
-STUDIES = {
-    "smoke": Study(_smoke_cells, _smoke_run),
-}
+    return json.dumps([{**fields, **row} for row in rows])

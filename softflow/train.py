@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import copy
 import time
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from pathlib import Path
 
 import numpy as np
@@ -241,16 +241,23 @@ def rod_folder(robot: Robot, gravity: str) -> str:
 
 
 def checkpoint_path(name: str, profile: str, robot: Robot = SIM_ROBOT, gravity: str = "vertical",
-                    model_kwargs: dict | None = None, *, shipped: bool = False) -> Path:
+                    model_kwargs: dict | None = None, *, seed: int = 0, shipped: bool = False,
+                    root: Path | None = None) -> Path:
     """Where model ``name`` of a profile is trained to (``shipped``: its committed copy in
-    checkpoints/, paper profile only); variants with other constructor arguments (a size
-    sweep) in variants/, named after the arguments that differ."""
-    if shipped and profile != "paper":
-        raise ValueError(f"only paper-profile models ship in {SHIPPED}; got profile {profile!r}")
-    folder = (SHIPPED if shipped else TRAINED / profile) / rod_folder(robot, gravity)
+    checkpoints/, paper profile and seed 0 only; ``root``: another folder than
+    data/checkpoints/<profile>, a sweep's own); variants with other constructor arguments (a
+    size sweep) in variants/, named after the arguments that differ; other seeds as -seedN."""
+    if shipped and (profile != "paper" or seed != 0 or root is not None):
+        raise ValueError(f"only seed-0 paper-profile models ship in {SHIPPED}; got profile {profile!r}, seed {seed!r}"
+                         + (f", root {root}" if root is not None else ""))
+    if not (isinstance(seed, int) and seed >= 0):
+        raise ValueError(f"seed must be a non-negative integer; got {seed!r}")
+    folder = (SHIPPED if shipped else Path(root) if root is not None else TRAINED / profile) / rod_folder(robot, gravity)
     default, chosen = resolved_kwargs(name), resolved_kwargs(name, **(model_kwargs or {}))
     changed = "-".join(f"{key}{value}" for key, value in chosen.items() if value != default[key])
-    return folder / "variants" / f"{name}-{changed}.pt" if changed else folder / f"{name}.pt"
+    stem = f"{name}-{changed}" if changed else name
+    stem += f"-seed{seed}" if seed else ""
+    return folder / "variants" / f"{stem}.pt" if changed else folder / f"{stem}.pt"
 
 
 def find_checkpoint(name: str, profile: str, robot: Robot = SIM_ROBOT, gravity: str = "vertical",
@@ -271,24 +278,25 @@ def find_checkpoint(name: str, profile: str, robot: Robot = SIM_ROBOT, gravity: 
 
 
 def ensure_trained(name: str, profile: Profile, dataset: Dataset, robot: Robot = SIM_ROBOT, gravity: str = "vertical",
-                   *, model_kwargs: dict | None = None, ship: bool = False, device: str = "cpu",
-                   progress: bool = False):
-    """Model ``name`` trained on ``dataset`` with the profile's budget for it: the shipped
-    checkpoint when it is current, else a finished one in data/checkpoints/, else trained
-    there now (``ship=True``: into checkpoints/ instead, the only way to write it). The
-    models it requires (RF-FWD's surrogate) are ensured first, each with its own budget."""
+                   *, model_kwargs: dict | None = None, seed: int = 0, root: Path | None = None, ship: bool = False,
+                   device: str = "cpu", progress: bool = False):
+    """Model ``name`` trained on ``dataset`` with the profile's budget for it and training seed
+    ``seed``: the shipped checkpoint when it is current (seed 0), else a finished one in
+    data/checkpoints/ (or ``root``), else trained there now (``ship=True``: into checkpoints/
+    instead, the only way to write it). The models it requires (RF-FWD's surrogate) are
+    ensured first, each with its own budget and the same seed."""
     if dataset.robot != robot or dataset.gravity != gravity:
         raise ValueError(f"dataset was made for {dataset.robot.name!r} / {dataset.gravity!r}, "
                          f"not {robot.name!r} / {gravity!r}")
-    config = profile.train_config(name)
-    if profile.name == "paper" and not ship:
+    path = checkpoint_path(name, profile.name, robot, gravity, model_kwargs, seed=seed, shipped=ship, root=root)
+    config = replace(profile.train_config(name), seed=seed)
+    if profile.name == "paper" and not ship and seed == 0:
         shipped = checkpoint_path(name, profile.name, robot, gravity, model_kwargs, shipped=True)
         if shipped.exists():
             checkpoint = load_checkpoint(shipped)
             if _matches(checkpoint, identity(name, model_kwargs, config, dataset.key)):
                 return model_from_checkpoint(checkpoint, shipped), checkpoint
-    dependencies = {dep: ensure_trained(dep, profile, dataset, robot, gravity, ship=ship, device=device,
-                                        progress=progress)[0] for dep in model_spec(name).requires}
-    path = checkpoint_path(name, profile.name, robot, gravity, model_kwargs, shipped=ship)
+    dependencies = {dep: ensure_trained(dep, profile, dataset, robot, gravity, seed=seed, root=root, ship=ship,
+                                        device=device, progress=progress)[0] for dep in model_spec(name).requires}
     return train(name, dataset, config, path, model_kwargs=model_kwargs, dependencies=dependencies, device=device,
                  progress=progress)

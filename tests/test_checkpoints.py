@@ -6,6 +6,7 @@ import warnings
 
 import numpy as np
 import pytest
+import torch
 
 from softflow import control, data, train, trajectories
 from softflow.models import resolved_kwargs
@@ -77,7 +78,28 @@ def test_only_ship_writes_the_shipped_folder(tmp_path, monkeypatch):
     assert not (tmp_path / "shipped").exists() and (tmp_path / "trained" / "paper" / "mlp.pt").exists()
     train.ensure_trained("mlp", paper_sized, dataset, ship=True)
     assert (tmp_path / "shipped" / "mlp.pt").exists()
-    with pytest.raises(ValueError, match="only paper-profile models ship"):
+    with pytest.raises(ValueError, match="only seed-0 paper-profile models ship"):
         train.checkpoint_path("mlp", "ci", shipped=True)
     with pytest.raises(ValueError, match="dataset was made for 'sim' / 'vertical', not 'hw' / 'vertical'"):
         train.ensure_trained("mlp", paper_sized, dataset, HW_ROBOT)
+
+
+def test_other_seeds_train_apart_from_the_shipped_model(tmp_path, monkeypatch):
+    """Seed 0 of the paper profile is the shipped model; seed 1 trains (with its surrogate, on
+    the same seed) into the folder it is given, with other weights."""
+    monkeypatch.setattr(train, "SHIPPED", tmp_path / "shipped")
+    paper_sized = Profile("paper", n_episodes=10, episode_seconds=0.3, train=TINY)
+    dataset = data.load_dataset(paper_sized, data_dir=tmp_path / "data", progress=False)
+    shipped_model, _ = train.ensure_trained("rf-fwd", paper_sized, dataset, ship=True)
+    reused, _ = train.ensure_trained("rf-fwd", paper_sized, dataset, root=tmp_path / "sweep")
+    assert not (tmp_path / "sweep").exists()  # seed 0 is the shipped model
+    other, checkpoint = train.ensure_trained("rf-fwd", paper_sized, dataset, seed=1, root=tmp_path / "sweep")
+    assert sorted(p.name for p in (tmp_path / "sweep").iterdir()) == ["forward-seed1.pt", "rf-fwd-seed1.pt"]
+    assert checkpoint["train_config"]["seed"] == 1
+    weights = [dict(m.named_parameters())["net.0.weight"] for m in (shipped_model, reused, other)]
+    assert torch.equal(weights[0], weights[1]) and not torch.equal(weights[0], weights[2])
+    assert train.checkpoint_path("mlp", "ci", seed=2) == train.TRAINED / "ci" / "mlp-seed2.pt"
+    with pytest.raises(ValueError, match="only seed-0 paper-profile models ship"):
+        train.checkpoint_path("mlp", "paper", seed=1, shipped=True)
+    with pytest.raises(ValueError, match="seed must be a non-negative integer"):
+        train.checkpoint_path("mlp", "paper", seed=-1)

@@ -97,6 +97,37 @@ def test_cli_runs_on_a_cluster_through_its_scheduler_file(client, scheduler_file
     assert table["u_rmse"].notna().all() and table["u_rmse"].gt(0).all() and len(table) >= 2
 
 
+def _per_reference_cells(profile_name):
+    return [dict(study="multi", model="none", seed=seed) for seed in (0, 1)]
+
+
+def _per_reference_run(cell, profile_name, device, workdir, key):
+    return [dict(reference=f"R{r}", score=cell["seed"] + r / 4) for r in range(3)]
+
+
+def test_cells_with_several_rows_ship_and_read_back_from_the_shipped_csv(tmp_path, monkeypatch):
+    """A paper-profile sweep writes its rows to the shipped CSV too; on a fresh clone (no
+    cache) those rows count as cached, unless the sweep is told to recompute them."""
+    monkeypatch.setattr(sweep, "SWEEPS_DIR", tmp_path / "cache")
+    monkeypatch.setattr(sweep, "SHIPPED_RESULTS", tmp_path / "shipped")
+    monkeypatch.setitem(sweep.STUDIES, "multi", sweep.Study(_per_reference_cells, _per_reference_run))
+    first = sweep.run_sweep("multi", "paper", client=None, device="cpu", progress=False)
+    assert first.rows["score"].tolist() == [0, 0.25, 0.5, 1, 1.25, 1.5]
+    assert first.rows["reference"].tolist() == ["R0", "R1", "R2"] * 2
+    shipped = tmp_path / "shipped" / "multi-paper.csv"
+    pd.testing.assert_frame_equal(pd.read_csv(shipped), pd.read_csv(first.csv))
+
+    for cached in (tmp_path / "cache" / "multi").glob("*.json"):
+        cached.unlink()  # a fresh clone: only the shipped CSV
+    monkeypatch.setitem(sweep.STUDIES, "multi", sweep.Study(_per_reference_cells, _must_not_run))
+    fresh = sweep.run_sweep("multi", "paper", client=None, device="cpu", progress=False)
+    assert (fresh.cached, fresh.computed) == (2, 0)
+    pd.testing.assert_frame_equal(fresh.rows, first.rows)
+    recomputed = sweep.run_sweep("multi", "paper", client=None, device="cpu", shipped=False, progress=False)
+    assert recomputed.computed == 2 and recomputed.failures[0].error.startswith("AssertionError")
+    pd.testing.assert_frame_equal(pd.read_csv(shipped), first.rows)  # not replaced by nothing
+
+
 def test_bad_input_is_refused():
     with pytest.raises(ValueError, match="study"):
         sweep.run_sweep("no-such-study", "ci", client=None, device="cpu")

@@ -1,0 +1,130 @@
+"""The studies ``python -m softflow sweep`` runs: each a grid of independent cells and the
+function that turns one cell into result rows. A new study is one entry in ``STUDIES``.
+
+table1: Tables I and II with confidence intervals. Every model of the paper at its own
+    budget, three training seeds (seed 0 is the shipped model), scored open loop on the
+    eight shapes and 24 random references (Rand1..Rand4 are the paper's), plus the ILC floor.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+import torch
+
+from . import data, floor, train
+from .control import Controller, evaluate, score
+from .profiles import Profile, TrainConfig, get_profile
+from .robots import SIM_ROBOT
+from .sim import Simulator
+from .trajectories import STRUCTURED, cached_references, evaluation_references, random_references
+
+
+@dataclass(frozen=True)
+class Study:
+    """A grid of cells and the function that turns one cell into measurements.
+
+    ``cells(profile_name)``: JSON-able dicts, each naming its study, model, seed and condition.
+    ``run_cell(cell, profile_name, device, workdir, key)``: a dict of JSON-able measurements,
+    or a list of them (one row each, e.g. per reference), that depends on nothing but its
+    arguments (its rows are cached by them). ``workdir`` is the study's folder, for files
+    cells share (datasets) or own (name those by ``key``).
+    ``version``: bump it when a change alters the numbers run_cell returns; every cached row
+    of the study is then recomputed.
+    """
+
+    cells: Callable[[str], list[dict]]
+    run_cell: Callable[[dict, str, str, Path, str], dict | list[dict]]
+    version: int = 1
+
+
+# ---------------------------------------------------------------------------- smoke
+SMOKE_DATA = Profile("smoke", n_episodes=20, episode_seconds=1.0)  # 16 / 2 / 2 episodes: train / val / test
+
+
+def _smoke_cells(profile_name: str) -> list[dict]:
+    return [dict(study="smoke", model="mlp", hidden=16, seed=seed, condition="tiny") for seed in (0, 1)]
+
+
+def _smoke_run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> dict:
+    """A tiny MLP on a tiny dataset, scored per step on the test episodes: seconds per cell,
+    the same for every profile (it tries the machinery, not the science)."""
+    dataset = data.load_dataset(SMOKE_DATA, data_dir=workdir / "data", progress=False)  # shared; safe to race
+    config = TrainConfig(epochs=2, steps_per_epoch=20, batch_size=64, warmup_steps=5, val_samples=200,
+                         seed=cell["seed"])
+    model, checkpoint = train.train(cell["model"], dataset, config, workdir / "models" / f"{key}.pt",
+                                    model_kwargs={"hidden": cell["hidden"]}, device=device, progress=False)
+    n_steps = dataset.u.shape[1]
+    episodes, steps = np.repeat(dataset.test, n_steps), np.tile(np.arange(n_steps), len(dataset.test))
+    window = torch.as_tensor(train.gather_windows(dataset.states, episodes, steps, model.context), dtype=torch.float32)
+    with torch.no_grad():
+        u_hat = model.predict(window).numpy()
+    return dict(best_val=float(checkpoint["best_val"]), epochs_run=int(checkpoint["epochs_run"]),
+                u_rmse=float(np.sqrt(np.mean((u_hat - dataset.u[episodes, steps]) ** 2))))
+
+
+# ---------------------------------------------------------------------------- table1
+FLOOR = "ilc-floor"  # the model name of the ILC floor's rows
+TABLE1 = {  # per profile: the grid, and the references it is scored on
+    "ci": dict(models=("mlp", "rf"), seeds=(0, 1), shapes=("circle", "char_S"), n_random=4, ilc_iterations=8),
+    "paper": dict(models=("mlp", "lstm", "transformer", "rf", "rf-physical", "rf-fwd"), seeds=(0, 1, 2),
+                  shapes=STRUCTURED, n_random=24, ilc_iterations=40),
+}
+EXTRA_RANDOM_SEED = 1001  # Rand5.. (Rand1..Rand4 are the paper's, seed 1000)
+
+
+def table1_references(sim: Simulator, profile_name: str):
+    """The profile's Table I references: its shapes, then Rand1..Rand<n_random> (cached)."""
+    grid = TABLE1[profile_name]
+    paper_set = evaluation_references(sim)
+    shapes = [r for r in paper_set if r.name in grid["shapes"]]
+    random = [r for r in paper_set if r.family == "random"][: grid["n_random"]]
+    extra = grid["n_random"] - len(random)
+    if extra > 0:
+        random += cached_references(sim, f"random-extra-{extra}", _more_random(extra, first=len(random) + 1))
+    return shapes + random
+
+
+def _more_random(n: int, first: int):
+    def more_random(sim):
+        made = random_references(sim, n, seed=EXTRA_RANDOM_SEED)
+        return [replace(r, name=f"Rand{first + k}") for k, r in enumerate(made)]
+    return more_random
+
+
+def _table1_cells(profile_name: str) -> list[dict]:
+    grid = TABLE1[profile_name]
+    return ([dict(study="table1", model=model, seed=seed) for model in grid["models"] for seed in grid["seeds"]]
+            + [dict(study="table1", model=FLOOR, seed=0)])
+
+
+def _table1_run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> list[dict]:
+    """One model and seed trained (or the shipped model reused) and scored on every reference;
+    or the ILC floor on every reference. One row per reference."""
+    profile, sim = get_profile(profile_name), Simulator(SIM_ROBOT)
+    references = table1_references(sim, profile_name)
+    if cell["model"] == FLOOR:
+        plans, reached, history = floor.ilc_plans(sim, references, iterations=TABLE1[profile_name]["ilc_iterations"])
+        trials = np.argmin(history, axis=0)
+        return [_unnamed(score(FLOOR, r, u, X), ilc_best_trial=int(t))
+                for r, u, X, t in zip(references, plans, reached, trials)]
+    dataset = data.load_dataset(profile, progress=False)
+    model, checkpoint = train.ensure_trained(cell["model"], profile, dataset, seed=cell["seed"],
+                                             root=workdir / "models" / profile_name, device=device)
+    results, _ = evaluate(Controller(model, cell["model"]), references, sim)
+    trained = dict(best_val=float(checkpoint["best_val"]), epochs_run=int(checkpoint["epochs_run"]),
+                   train_minutes=float(checkpoint["wall_seconds"]) / 60)
+    return [_unnamed(row, **trained) for row in results.to_dict("records")]
+
+
+def _unnamed(row: dict, **more) -> dict:
+    """A scored row without its model name (the cell names it), with ``more`` columns."""
+    return {**{k: v for k, v in row.items() if k != "model"}, **more}
+
+
+STUDIES = {
+    "smoke": Study(_smoke_cells, _smoke_run),
+    "table1": Study(_table1_cells, _table1_run),
+}
