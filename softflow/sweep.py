@@ -114,6 +114,7 @@ def run_sweep(study: str, profile_name: str, *, client: Client | None, device: s
     rows.update({key: cached for key in keys if (cached := _cached_rows(workdir / f"{key}.json")) is not None})
     missing = [(key, cell) for key, cell in zip(keys, cells) if key not in rows]
     failures = []
+    csv = root / f"{study}-{profile_name}.csv"
     bar = tqdm(total=len(cells), initial=len(rows), desc=f"sweep {study}", unit="cell", disable=not progress)
     for key, cell, outcome in _outcomes(study, missing, profile_name, device, workdir, client):
         if isinstance(outcome, Exception):
@@ -121,17 +122,22 @@ def run_sweep(study: str, profile_name: str, *, client: Client | None, device: s
         else:
             write_text(workdir / f"{key}.json", outcome)
             rows[key] = json.loads(outcome)
+            _write_tables(rows, keys, csv, shipped_csv, shipped)  # as they come: a long sweep can be committed
         bar.update(1)
     bar.close()
+    table = _write_tables(rows, keys, csv, shipped_csv, shipped)
+    return SweepResult(csv, table, failures, cached=len(cells) - len(missing), computed=len(missing))
 
+
+def _write_tables(rows: dict, keys, csv: Path, shipped_csv: Path | None, shipped: bool) -> pd.DataFrame:
+    """The rows so far in grid order, written to the CSV and, for the paper profile, to the
+    shipped CSV, which is replaced only by a superset: these rows include its rows unless the
+    sweep recomputes them (shipped=False) and has not finished."""
     table = pd.DataFrame([row for key in keys for row in rows.get(key, [])])
-    csv = root / f"{study}-{profile_name}.csv"
     write_text(csv, table.to_csv(index=False))
-    # The shipped rows are replaced only by a superset: these rows include them unless the
-    # sweep recomputed (shipped=False) and has not finished.
     if shipped_csv is not None and len(table) and (shipped or len(rows) == len(keys)):
         write_text(shipped_csv, table.to_csv(index=False))
-    return SweepResult(csv, table, failures, cached=len(cells) - len(missing), computed=len(missing))
+    return table
 
 
 def _cached_rows(path: Path) -> list[dict] | None:
