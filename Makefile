@@ -1,6 +1,7 @@
 # softflow: every result of the paper from one command.
 #   make reproduce   run every notebook (PROFILE=paper by default; PROFILE=ci for minutes)
 #   make test        unit tests + nbval of the committed notebooks (ci profile)
+#   make study       recompute every cell of the studies (notebook 08) on a local Dask cluster
 SHELL := /bin/bash
 PYTHON_BASE ?= python3.11
 VENV := .venv
@@ -10,7 +11,7 @@ PROFILE ?= paper
 BENCH_PROFILE ?= ci
 NOTEBOOKS := $(sort $(wildcard notebooks/[0-9]*.ipynb))
 
-.PHONY: venv test reproduce bench lab clean lock
+.PHONY: venv test reproduce study bench lab clean lock
 
 venv: $(STAMP)
 
@@ -40,11 +41,20 @@ test: $(STAMP)
 	$(PY) -m pytest $(LAST) $(NBVAL) -p no:cacheprovider; last=$$?; \
 	exit $$(( a || b || last ))
 
+# 07 reads every other notebook's results: it runs last.
 reproduce: $(STAMP)
 	mkdir -p build/notebooks/$(PROFILE)
-	for nb in $(NOTEBOOKS); do \
+	for nb in $(filter-out $(LAST),$(NOTEBOOKS)) $(LAST); do \
 		echo "== $$nb ($(PROFILE))"; \
 		$(VENV)/bin/papermill --cwd notebooks -p profile $(PROFILE) "$$nb" "build/notebooks/$(PROFILE)/$$(basename $$nb)" || exit 1; \
+	done
+
+# Every cell of the studies, recomputed (not read from figures/sweeps/) and cached in
+# data/sweeps/, so an interrupted run resumes; SCHEDULER_FILE=s.json runs them on your cluster.
+STUDIES := table1 protocol
+study: $(STAMP)
+	for s in $(STUDIES); do \
+		$(PY) -m softflow sweep $$s --profile $(PROFILE) --recompute $(if $(SCHEDULER_FILE),--scheduler-file $(SCHEDULER_FILE)) || exit 1; \
 	done
 
 ELASTICA := .venv-elastica/.installed

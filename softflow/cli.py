@@ -4,7 +4,7 @@
   python -m softflow train --profile paper mlp rf-fwd   train models into their checkpoints
   python -m softflow train --robot hw --gravity horizontal rf-fwd   a hardware-twin model
   python -m softflow train --profile paper --ship rf-fwd   retrain a shipped model into checkpoints/
-  python -m softflow sweep smoke --profile ci [--scheduler-file F]   a study's cells as Dask tasks (docs/sweeps.md)
+  python -m softflow sweep table1 --profile paper [--scheduler-file F]   a study's cells as Dask tasks (docs/sweeps.md)
 
 Trained models go to data/checkpoints/ (git-ignored); only --ship writes checkpoints/.
 """
@@ -62,11 +62,14 @@ def _sweep(argv):
     cluster.add_argument("--scheduler", metavar="ADDRESS", help="run on the cluster at this address (tcp://host:8786)")
     parser.add_argument("--workers", type=int, help="worker processes of the local cluster (default: one per core)")
     parser.add_argument("--device", default="auto", choices=sweep.DEVICES, help="auto: CUDA, else MPS, else CPU")
+    parser.add_argument("--recompute", action="store_true",
+                        help="recompute the cells whose rows ship in figures/sweeps/ (cached rows in data/sweeps/ still count)")
     args = parser.parse_args(argv)
     start = time.perf_counter()
     try:
         with sweep.connect(args.scheduler_file, args.scheduler, args.workers) as client:
-            result = sweep.run_sweep(args.study, args.profile, client=client, device=args.device)
+            result = sweep.run_sweep(args.study, args.profile, client=client, device=args.device,
+                                     shipped=not args.recompute)
     except ValueError as error:
         parser.error(str(error))
     for failure in result.failures:

@@ -184,15 +184,16 @@ def _padded(plans):
     return plans, np.stack([np.concatenate([u, np.repeat(u[-1:], longest - len(u), 0)]) for u in plans])
 
 
-def evaluate(controller, references, sim: Simulator, u_limit: float = U_MAX, **plan_options):
+def evaluate(controller, references, sim: Simulator, u_limit: float = U_MAX, *, start_q=None, **plan_options):
     """Plan every reference (``plan_options`` go to ``plan``, e.g. steps=N), clip to the
-    actuator range, run all plans open loop from rest in one batched rollout, and score
-    them. Returns a DataFrame (one row per reference) and {name: dict(u, states)}."""
-    results, runs = evaluate_many([controller], references, sim, u_limit, **plan_options)
+    actuator range, run all plans open loop from rest (the rest pose, or ``start_q``, one
+    (nq,) pose per reference) in one batched rollout, and score them. Returns a DataFrame
+    (one row per reference) and {name: dict(u, states)}."""
+    results, runs = evaluate_many([controller], references, sim, u_limit, start_q=start_q, **plan_options)
     return results, runs[controller.name]
 
 
-def evaluate_many(controllers, references, sim: Simulator, u_limit: float = U_MAX, **plan_options):
+def evaluate_many(controllers, references, sim: Simulator, u_limit: float = U_MAX, *, start_q=None, **plan_options):
     """``evaluate`` for several controllers at once: every plan of every controller runs in
     one batched rollout, several times faster than one rollout per controller (the simulator
     is batch-invariant, so the numbers are the same). Returns one DataFrame (a row per
@@ -202,7 +203,8 @@ def evaluate_many(controllers, references, sim: Simulator, u_limit: float = U_MA
         raise ValueError(f"controllers must have distinct names; got {names}")
     planned = [plan_all(c, references, u_limit, **plan_options)[0] for c in controllers]
     _, padded = _padded([u for plans in planned for u in plans])
-    achieved = sim.rollout(padded).reshape(len(controllers), len(references), -1, 6)
+    start = None if start_q is None else np.tile(np.asarray(start_q, float), (len(controllers), 1))
+    achieved = sim.rollout(padded, start_q=start).reshape(len(controllers), len(references), -1, 6)
     rows, runs = [], {name: {} for name in names}
     for name, plans, outcomes in zip(names, planned, achieved):
         for r, u, X in zip(references, plans, outcomes):

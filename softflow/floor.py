@@ -32,10 +32,10 @@ GAIN = 1.0  # the full model-inverse step; 0.5 roughly halved the rate of conver
 
 
 def ilc_plans(sim: Simulator, references, *, iterations: int = ITERATIONS, cutoff_hz: float = CUTOFF_HZ,
-              gain: float = GAIN, u_limit: float = U_MAX, progress: bool = False):
+              gain: float = GAIN, u_limit: float = U_MAX, start_q=None, progress: bool = False):
     """The best plan ILC finds for each reference within ``iterations`` trials, all references
-    in one batched rollout per trial. Starts from the quasi-static plan (inverse statics of the
-    reference tip). Returns the best plans, the states they reach (one (T+1, 6) per reference)
+    in one batched rollout per trial (from rest, or from ``start_q`` as in ``control.evaluate``).
+    Starts from the quasi-static plan (inverse statics of the reference tip). Returns the best plans, the states they reach (one (T+1, 6) per reference)
     and the history of each reference's RMSE in mm, (iterations + 1, R)."""
     if not (isinstance(iterations, int) and iterations >= 0):
         raise ValueError(f"iterations must be a non-negative integer; got {iterations!r}")
@@ -48,7 +48,7 @@ def ilc_plans(sim: Simulator, references, *, iterations: int = ITERATIONS, cutof
     best, best_rmse, history = [None] * len(plans), np.full(len(references), np.inf), []
     for _ in tqdm(range(iterations + 1), desc="ILC floor", unit="trial", disable=not progress):
         _, padded = _padded(plans)
-        achieved = sim.rollout(padded)
+        achieved = sim.rollout(padded, start_q=start_q)
         rmse = np.array([1e3 * tracking_rmse(X[: r.n_steps + 1], r.states, r.mask)
                          for r, X in zip(references, achieved)])
         history.append(rmse)

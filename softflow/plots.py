@@ -267,3 +267,50 @@ def images(pictures: dict, columns: int = 2):
         ax.set_title(title)
     fig.tight_layout()
     return fig
+
+
+def intervals(summaries: dict, labels: dict, xlabel: str = "RMSE [mm]"):
+    """One panel per title in ``summaries`` ({title: DataFrame indexed by model with mean, low,
+    high}): each model's mean and interval, on a log axis (the floor sits far below)."""
+    fig, axes = plt.subplots(1, len(summaries), figsize=(4.2 * len(summaries), 3.2), sharey=True)
+    for ax, (title, table) in zip(np.atleast_1d(axes), summaries.items()):
+        y = np.arange(len(table))[::-1]
+        ax.errorbar(table["mean"], y, xerr=[table["mean"] - table["low"], table["high"] - table["mean"]],
+                    fmt="o", color="k", capsize=3)
+        ax.set(xscale="log", xlabel=xlabel, title=title, yticks=y, yticklabels=[labels.get(m, m) for m in table.index])
+    fig.tight_layout()
+    return fig
+
+
+def condition_grid(table, labels: dict, title: str):
+    """A condition x model table of RMSE (mm) as a heatmap on a log colour scale, values written in."""
+    from matplotlib.colors import LogNorm
+
+    values = table.to_numpy(float)
+    fig, ax = plt.subplots(figsize=(1.1 * values.shape[1] + 2.5, 0.38 * values.shape[0] + 1.4))
+    image = ax.imshow(values, norm=LogNorm(np.nanmin(values), np.nanmax(values)), cmap="viridis", aspect="auto")
+    for (i, j), v in np.ndenumerate(values):
+        if np.isfinite(v):
+            ax.text(j, i, f"{v:.2g}", ha="center", va="center", fontsize=7, color="w" if v < np.nanmax(values) / 3 else "k")
+    ax.set(xticks=range(values.shape[1]), xticklabels=[labels.get(m, m) for m in table.columns],
+           yticks=range(values.shape[0]), yticklabels=table.index, title=title)
+    ax.tick_params(axis="x", rotation=30)
+    ax.grid(False)
+    fig.colorbar(image, ax=ax, label="RMSE [mm]")
+    return fig
+
+
+def against_speed(summary, coverage, labels: dict):
+    """RMSE against the shapes' mean tip speed per model, with interval bands, and the
+    references' coverage by the training states on a second axis."""
+    fig, ax = plt.subplots()
+    for model, part in summary.groupby("model", sort=False):
+        line, = ax.plot(part["speed"], part["mean"], "o-", ms=3, label=labels.get(model, model))
+        ax.fill_between(part["speed"], part["low"], part["high"], color=line.get_color(), alpha=0.15)
+    ax.set(xlabel="mean tip speed of the shapes [m/s]", ylabel="RMSE [mm]", yscale="log")
+    twin = ax.twinx()
+    twin.plot(coverage.index, coverage.values, "k--", lw=1)
+    twin.set(ylabel="coverage by training states (dashed)", ylim=(0, 1.05))
+    twin.grid(False)
+    ax.legend(fontsize=7, ncol=2)
+    return fig

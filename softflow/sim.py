@@ -227,11 +227,13 @@ class Simulator:
         qd0, _ = as_real_array(np.broadcast_to(qd0, (B, self.nq)), "qd0", (B, self.nq))
         return self._map_chunks(lambda c: self._advance(u[c], q0[c], qd0[c]), B, progress)
 
-    def rollout(self, u, *, progress: bool = False):
-        """Tip states (B, T+1, 6) = [p, v] for actuation u (B, T, 2) from rest."""
+    def rollout(self, u, *, start_q=None, progress: bool = False):
+        """Tip states (B, T+1, 6) = [p, v] for actuation u (B, T, 2) from rest: the rest pose,
+        or ``start_q`` (B, nq) (e.g. an equilibrium, ``static_q``) at zero velocity."""
         u = self._actuation(u, (None, None, 2))
         B = u.shape[0]
-        q0, qd0 = np.broadcast_to(self.rest_q(), (B, self.nq)), np.zeros((B, self.nq))
+        q0 = self.rest_q() if start_q is None else as_real_array(start_q, "start_q", (B, self.nq))[0]
+        q0, qd0 = np.broadcast_to(q0, (B, self.nq)), np.zeros((B, self.nq))
 
         def work(c):
             qs, qds = self._advance(u[c], q0[c], qd0[c])

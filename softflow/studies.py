@@ -4,6 +4,8 @@ function that turns one cell into result rows. A new study is one entry in ``STU
 table1: Tables I and II with confidence intervals. Every model of the paper at its own
     budget, three training seeds (seed 0 is the shipped model), scored open loop on the
     eight shapes and 24 random references (Rand1..Rand4 are the paper's), plus the ILC floor.
+protocol: Table I under each choice the paper leaves open (``protocol``), with the seed-0
+    models (no retraining) and the ILC floor; the conditions were fixed before any ran.
 """
 from __future__ import annotations
 
@@ -17,6 +19,8 @@ import torch
 from . import data, floor, train
 from .control import Controller, evaluate, score
 from .profiles import Profile, TrainConfig, get_profile
+from .protocol import Protocol, apply, coverage, shapes_at
+from .report import FLOOR
 from .robots import SIM_ROBOT
 from .sim import Simulator
 from .trajectories import STRUCTURED, cached_references, evaluation_references, random_references
@@ -66,7 +70,6 @@ def _smoke_run(cell: dict, profile_name: str, device: str, workdir: Path, key: s
 
 
 # ---------------------------------------------------------------------------- table1
-FLOOR = "ilc-floor"  # the model name of the ILC floor's rows
 TABLE1 = {  # per profile: the grid, and the references it is scored on
     "ci": dict(models=("mlp", "rf"), seeds=(0, 1), shapes=("circle", "char_S"), n_random=4, ilc_iterations=8),
     "paper": dict(models=("mlp", "lstm", "transformer", "rf", "rf-physical", "rf-fwd"), seeds=(0, 1, 2),
@@ -96,8 +99,8 @@ def _more_random(n: int, first: int):
 
 def _table1_cells(profile_name: str) -> list[dict]:
     grid = TABLE1[profile_name]
-    return ([dict(study="table1", model=model, seed=seed) for model in grid["models"] for seed in grid["seeds"]]
-            + [dict(study="table1", model=FLOOR, seed=0)])
+    return [dict(study="table1", model=FLOOR, seed=0)] + [dict(study="table1", model=model, seed=seed)
+                                                          for model in grid["models"] for seed in grid["seeds"]]
 
 
 def _table1_run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> list[dict]:
@@ -124,7 +127,62 @@ def _unnamed(row: dict, **more) -> dict:
     return {**{k: v for k, v in row.items() if k != "model"}, **more}
 
 
+# ---------------------------------------------------------------------------- protocol
+PROTOCOLS = {  # condition -> the protocol it scores with; "table1" is Table I's
+    "table1": Protocol(),
+    "approach-scored": Protocol(approach="scored"),
+    "on-path": Protocol(approach="on-path"),
+    "px-constant": Protocol(lift="px-constant"),
+    "zero-velocity": Protocol(lift="zero-velocity"),
+    "finite-difference": Protocol(lift="finite-difference"),
+    "z-seeded": Protocol(noise="seeded"),
+    "z-fresh": Protocol(noise="fresh"),
+    **{f"speed-{v:g}": Protocol(speed=v) for v in (0.3, 0.5, 0.75, 1.0, 1.5)},
+}
+PROTOCOL_GRID = {
+    "ci": dict(conditions=("table1", "on-path", "zero-velocity", "z-fresh", "speed-0.5"), ilc_iterations=4),
+    "paper": dict(conditions=tuple(PROTOCOLS), ilc_iterations=15),  # shapes settle within 10 trials
+}
+WITH_RANDOM = ("table1", "z-seeded", "z-fresh")  # conditions that change something on Rand1..Rand4
+
+
+def _protocol_cells(profile_name: str) -> list[dict]:
+    models = (*TABLE1[profile_name]["models"], FLOOR)
+    return [dict(study="protocol", model=model, seed=0, condition=condition)
+            for condition in PROTOCOL_GRID[profile_name]["conditions"] for model in models
+            if not (model == FLOOR and PROTOCOLS[condition].noise != "zero")]  # the floor draws no noise
+
+
+def protocol_references(sim: Simulator, profile_name: str, condition: str):
+    """The references a condition scores, before the protocol is applied: the profile's shapes
+    at the condition's speed, and Rand1..Rand4 where the condition changes them."""
+    protocol = PROTOCOLS[condition]
+    shapes = shapes_at(sim, TABLE1[profile_name]["shapes"], protocol.speed)
+    random = [r for r in evaluation_references(sim) if r.family == "random"] if condition in WITH_RANDOM else []
+    return shapes + random
+
+
+def _protocol_run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> list[dict]:
+    """A seed-0 model (or the floor) scored under one protocol; each row carries the
+    reference's coverage by the training states."""
+    profile, sim, protocol = get_profile(profile_name), Simulator(SIM_ROBOT), PROTOCOLS[cell["condition"]]
+    references, start_q = apply(sim, protocol_references(sim, profile_name, cell["condition"]), protocol)
+    dataset = data.load_dataset(profile, progress=False)
+    covered = dict(zip((r.name for r in references), coverage(references, dataset)))
+    if cell["model"] == FLOOR:
+        plans, reached, _ = floor.ilc_plans(sim, references, iterations=PROTOCOL_GRID[profile_name]["ilc_iterations"],
+                                            start_q=start_q)
+        rows = [score(FLOOR, r, u, X) for r, u, X in zip(references, plans, reached)]
+    else:
+        model, _ = train.ensure_trained(cell["model"], profile, dataset, device=device)
+        controller = Controller(model, cell["model"])
+        options = dict(noise=protocol.noise) if controller.generative else {}
+        rows = evaluate(controller, references, sim, start_q=start_q, **options)[0].to_dict("records")
+    return [_unnamed(row, coverage=covered[row["reference"]], speed=protocol.speed) for row in rows]
+
+
 STUDIES = {
     "smoke": Study(_smoke_cells, _smoke_run),
     "table1": Study(_table1_cells, _table1_run),
+    "protocol": Study(_protocol_cells, _protocol_run),
 }

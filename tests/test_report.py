@@ -58,3 +58,29 @@ def test_the_report_does_not_import_torch():
     code = "import sys, softflow.report; print('torch' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+
+
+def study_rows():
+    """Three seeds on two references per family; RF-FWD exactly 1 mm below the MLP everywhere."""
+    base = dict(mlp=5.0, lstm=6.0, transformer=7.0, rf=5.5, **{"rf-physical": 6.5, "rf-fwd": 4.0})
+    rows = [dict(model=model, seed=seed, reference=f"{family}{r}", family=family, rmse_mm=value + r + 0.1 * seed)
+            for model, value in base.items() for seed in range(3) for family in ("shape", "random") for r in range(2)]
+    rows += [dict(model=report.FLOOR, seed=0, reference=f"{family}{r}", family=family, rmse_mm=0.1)
+             for family in ("shape", "random") for r in range(2)]
+    return pd.DataFrame(rows)
+
+
+def test_study_tables_carry_intervals_the_floor_and_a_verdict():
+    rows = study_rows()
+    table = report.table1_ci(rows)
+    assert list(table.index) == [*report.MODELS, report.FLOOR]
+    assert table.loc["mlp", "shape_mm"].startswith("5.60 [") and table.loc[report.FLOOR, "random_mm"].startswith("0.10")
+    assert table.loc["mlp", "shape_seeds x refs"] == "3 x 2" and table.loc[report.FLOOR, "shape_seeds x refs"] == "1 x 2"
+    verdict = report.best_against_best(rows)
+    assert verdict.loc["shape", ["best_rf", "best_baseline"]].tolist() == ["rf-fwd", "mlp"]
+    assert verdict.loc["shape", "difference_mm"] == pytest.approx(-1.0)
+    assert verdict.loc["shape", "high"] < 0 and verdict.loc["shape", "verdict"] == "RF-FWD lower"
+    conditions = rows.assign(condition="table1", coverage=1.0)
+    grid = report.protocol_table(conditions)
+    assert list(grid.columns) == [*report.MODELS, report.FLOOR, "coverage"]
+    assert grid.loc["table1", "lstm"] == pytest.approx(6.6)
