@@ -42,17 +42,18 @@ class Controller:
 
     def __init__(self, model: torch.nn.Module, name: str, seed: int = 0, *, robot: Robot = SIM_ROBOT,
                  gravity: str = "vertical"):
-        self.model, self.name, self.seed = model.eval(), name, seed
+        self.model, self.name, self.seed, self.robot, self.gravity = model.eval(), name, seed, robot, gravity
         self.generative = isinstance(model, RectifiedFlow)
         self.statics = Simulator(robot, gravity).static_table() if model.needs_statics else None
         self.lean = LeanFlow(model) if self.generative else LeanMLP(model) if isinstance(model, InverseMLP) else None
 
-    def step(self, x_t, x_next) -> np.ndarray:
+    def step(self, x_t, x_next, *, clip: bool = True) -> np.ndarray:
         """u_t for one transition, (6,), (6,) -> (2,), or a batch, (B, 6), (B, 6) -> (B, 2): the
         real-time path (plain numpy, no autograd), the same u as ``plan`` to about 1e-5 N.
         A flow starts from z = 0, as ``plan`` does. u beyond the actuator range is clipped,
-        with a ``SaturationWarning``. Models that read a window of past states (LSTM,
-        Transformer) have no step: ``plan`` them."""
+        with a ``SaturationWarning`` (``clip=False``: returned as the model gives it, for a
+        loop that adds its own correction first). Models that read a window of past states
+        (LSTM, Transformer) have no step: ``plan`` them."""
         if self.lean is None:
             raise ValueError(f"{self.name} reads a window of {self.model.context} past transitions: it has no "
                              f"one-transition step; use plan")
@@ -64,10 +65,12 @@ class Controller:
             u = self.lean.predict(window, np.zeros((len(window), 2)), prior)
         else:
             u = self.lean.predict(window)
-        if np.abs(u).max() > U_MAX:
-            warnings.warn(f"{self.name}: {int(np.sum(np.abs(u) > U_MAX))} of {u.size} stepped u values exceed the "
-                          f"actuator range +-{U_MAX} N and were clipped", SaturationWarning, stacklevel=2)
-        u = np.clip(u.astype(np.float64), -U_MAX, U_MAX)
+        u = u.astype(np.float64)
+        if clip:
+            if np.abs(u).max() > U_MAX:
+                warnings.warn(f"{self.name}: {int(np.sum(np.abs(u) > U_MAX))} of {u.size} stepped u values exceed "
+                              f"the actuator range +-{U_MAX} N and were clipped", SaturationWarning, stacklevel=2)
+            u = np.clip(u, -U_MAX, U_MAX)
         return u[0] if unbatched else u
 
     def plan(self, reference, *, noise: str = "zero", seed: int | None = None, n_samples: int = 1,
@@ -120,7 +123,7 @@ class Controller:
         if steps is not None and not (isinstance(steps, (int, np.integer)) and steps >= 1):
             raise ValueError(f"steps must be a positive integer; got {steps!r}")
 
-    def _check_workspace(self, X):
+    def check_workspace(self, X):
         """Refuse references far outside the training states (unit mistakes, another rod)."""
         mean, std = (b.numpy().astype(np.float64) for b in (self.model.state_norm.mean, self.model.state_norm.std))
         score = np.abs(X[..., :3] - mean[:3]) / std[:3]
@@ -140,7 +143,7 @@ class Controller:
             raise ValueError("reference must hold at least one trajectory (its batch axis is empty)")
         if T < 1:
             raise ValueError("reference must have at least 2 samples")
-        self._check_workspace(X)
+        self.check_workspace(X)
         episodes, steps = np.repeat(np.arange(B), T), np.tile(np.arange(T), B)
         windows = torch.as_tensor(gather_windows(X, episodes, steps, self.model.context), dtype=torch.float32)
         extras = {k: torch.as_tensor(v.reshape(B * T, -1), dtype=torch.float32)

@@ -42,8 +42,7 @@ def ilc_plans(sim: Simulator, references, *, iterations: int = ITERATIONS, cutof
     if not (0 < cutoff_hz < 0.5 / DT and 0 < gain <= 1):
         raise ValueError(f"need 0 < cutoff_hz < {0.5 / DT:g} and 0 < gain <= 1; got {cutoff_hz!r}, {gain!r}")
     table = sim.static_table()
-    n_fft = 2 * max(r.n_steps for r in references)  # zero padding: no wrap-around of the filter
-    learning = _learning_filter(sim, n_fft, cutoff_hz)
+    learning = learning_filter(sim, max(r.n_steps for r in references), cutoff_hz)
     plans = [np.clip(table.inverse(r.states[1:, :3]), -u_limit, u_limit) for r in references]
     best, best_rmse, history = [None] * len(plans), np.full(len(references), np.inf), []
     for _ in tqdm(range(iterations + 1), desc="ILC floor", unit="trial", disable=not progress):
@@ -55,16 +54,17 @@ def ilc_plans(sim: Simulator, references, *, iterations: int = ITERATIONS, cutof
         best = [(u, X[: r.n_steps + 1]) if now < before else kept
                 for u, X, r, now, before, kept in zip(plans, achieved, references, rmse, best_rmse, best)]
         best_rmse = np.minimum(rmse, best_rmse)
-        plans = [_learn(table, u, r.states[1:, :3] - X[1: r.n_steps + 1, :3], gain, learning, u_limit)
-                 for u, r, X in zip(plans, references, achieved)]
+        plans = [np.clip(u + gain * correction(table, u, r.states[1:, :3] - X[1: r.n_steps + 1, :3], learning),
+                         -u_limit, u_limit) for u, r, X in zip(plans, references, achieved)]
     best_plans, reached = zip(*best)
     return list(best_plans), list(reached), np.array(history)
 
 
-def _learning_filter(sim: Simulator, n_fft: int, cutoff_hz: float) -> np.ndarray:
-    """Q(w) / H(w) on the rfft grid of ``n_fft`` samples. H from a small step of u1 at rest
-    (the tip's y response; the rod is symmetric about its axis), Q a 4th-order Butterworth
-    magnitude."""
+def learning_filter(sim: Simulator, n_steps: int, cutoff_hz: float = CUTOFF_HZ) -> np.ndarray:
+    """Q(w) / H(w) for plans of up to ``n_steps`` steps, on the rfft grid of 2 n_steps samples
+    (zero padding: no wrap-around). H from a small step of u1 at rest (the tip's y response;
+    the rod is symmetric about its axis), Q a 4th-order Butterworth magnitude."""
+    n_fft = 2 * n_steps
     step = np.zeros((1, n_fft, 2))
     step[..., 0] = 0.05  # N: small, so the response is linear
     y = sim.rollout(step)[0, :, 1]
@@ -75,10 +75,10 @@ def _learning_filter(sim: Simulator, n_fft: int, cutoff_hz: float) -> np.ndarray
     return Q / H
 
 
-def _learn(table, u, error, gain, learning, u_limit):
-    """One ILC update of a (T, 2) plan from its (T, 3) tip error."""
+def correction(table, u, error, learning) -> np.ndarray:
+    """The ILC step for a (T, 2) plan from its (T, 3) tip error (reference - achieved): the
+    static inverse of the error, filtered by ``learning`` (from ``learning_filter``)."""
     _, J = table.tip(np.clip(u, -table.u_range, table.u_range))
     static = np.einsum("tij,tj->ti", np.linalg.pinv(J), error)
     n_fft = 2 * (len(learning) - 1)
-    correction = np.fft.irfft(np.fft.rfft(static, n_fft, axis=0) * learning[:, None], n_fft, axis=0)[: len(u)]
-    return np.clip(u + gain * correction, -u_limit, u_limit)
+    return np.fft.irfft(np.fft.rfft(static, n_fft, axis=0) * learning[:, None], n_fft, axis=0)[: len(u)]

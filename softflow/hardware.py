@@ -33,9 +33,10 @@ from scipy.optimize import brentq
 
 from . import vision
 from .cables import cable_actuation, cable_displacements, cable_tensions
-from .checks import as_real_array
+from .checks import as_real_array, check_choice
 from .control import plan_all
 from .data import DT, U_MAX
+from .loop import PI, learn_by_repetition
 from .metrics import peak_speed, tracking_rmse
 from .robots import Robot
 from .sim import Simulator
@@ -136,27 +137,44 @@ class CablePlant:
     def _cable_stretch(self, motor, q):
         return motor + cable_displacements(self.sim.bend_angles(q), self.robot) - self.slack
 
+    def reset(self, batch: int = 1) -> None:
+        """``batch`` rods at rest, every motor holding the command of the rest pose (its
+        pretension, less any slack): the state ``step`` advances."""
+        sim = self.sim
+        self.q, self.qd = np.repeat(sim.rest_q()[None], batch, 0), np.zeros((batch, sim.nq))
+        self.motor = self.pretension / self.stiffness - cable_displacements(sim.bend_angles(self.q), self.robot)
+
+    def step(self, command) -> np.ndarray:
+        """Hold motor commands (B, C) in m for DT: the rods move; returns the mean cable
+        tensions (B, C) over the step. After ``reset``."""
+        sim, h = self.sim, DT / self.substeps
+        follow = 1.0 - np.exp(-h / self.gap.motor_lag) if self.gap.motor_lag > 0 else 1.0
+        tensions = np.zeros_like(self.motor)
+        for _ in range(self.substeps):
+            self.motor = self.motor + follow * (command - self.motor)
+            tension = self.stiffness * np.maximum(self._cable_stretch(self.motor, self.q + 0.5 * h * self.qd), 0.0)
+            self.q, self.qd = (x[:, -1] for x in sim.integrate(cable_actuation(tension, self.robot)[:, None],
+                                                                self.q, self.qd))
+            tensions += tension / self.substeps
+        return tensions
+
+    def tip_state(self) -> np.ndarray:
+        """The rods' tip states (B, 6) now."""
+        return self.sim.tip_state(self.q, self.qd)
+
     def replay(self, commands) -> dict:
         """Motor commands (B, T, C) in m, held for DT each -> dict of tip ``states`` (B, T+1, 6),
         rod ``q`` (B, T+1, nq) and mean cable ``tensions`` (B, T, C) per step."""
         commands, _ = as_real_array(commands, "commands", (None, None, self.robot.n_cables))
         B, T, C = commands.shape
-        sim, h = self.sim, DT / self.substeps
-        q, qd = np.repeat(sim.rest_q()[None], B, 0), np.zeros((B, sim.nq))
-        # at rest every motor holds the command of the rest pose (its pretension, less any slack)
-        motor = self.pretension / self.stiffness - cable_displacements(sim.bend_angles(q), self.robot)
-        follow = 1.0 - np.exp(-h / self.gap.motor_lag) if self.gap.motor_lag > 0 else 1.0
-        qs, qds, tensions = [q], [qd], np.zeros((B, T, C))
+        self.reset(B)
+        qs, qds, tensions = [self.q], [self.qd], np.zeros((B, T, C))
         for t in range(T):
-            for _ in range(self.substeps):
-                motor = motor + follow * (commands[:, t] - motor)
-                tension = self.stiffness * np.maximum(self._cable_stretch(motor, q + 0.5 * h * qd), 0.0)
-                q, qd = (x[:, -1] for x in sim.integrate(cable_actuation(tension, self.robot)[:, None], q, qd))
-                tensions[:, t] += tension / self.substeps
-            qs.append(q)
-            qds.append(qd)
+            tensions[:, t] = self.step(commands[:, t])
+            qs.append(self.q)
+            qds.append(self.qd)
         qs, qds = np.stack(qs, 1), np.stack(qds, 1)
-        states = sim.tip_state(qs.reshape(-1, sim.nq), qds.reshape(-1, sim.nq)).reshape(B, T + 1, 6)
+        states = self.sim.tip_state(qs.reshape(-1, self.sim.nq), qds.reshape(-1, self.sim.nq)).reshape(B, T + 1, 6)
         return dict(states=states, q=qs, tensions=tensions)
 
 
@@ -198,32 +216,120 @@ def tracked_rmse(frame_times, tracked, reference) -> float:
     return float(np.sqrt(np.mean(np.sum((tracked[scored] - expected[scored]) ** 2, axis=1))))
 
 
-def run_twin(controller, references, sim: Simulator, gap: RealityGap, *, command_dir=None, u_limit: float = U_MAX,
-             seed: int = 0):
-    """The hardware experiment on the twin: plan every reference with ``controller`` (trained on
-    the model ``sim``), turn the plans into motor commands through ``sim`` (written as CSV to
-    ``command_dir`` if given), replay them on the plant across ``gap`` in one batch, film each
-    run and score the camera track. Returns a DataFrame (one row per reference) and
-    {name: dict(u, commands, states, q, frame_times, tracked)}."""
+class TwinRig:
+    """The twin as a rig for ``loop.run_loop``. ``command(u)`` turns u into motor commands
+    through the model rod ``sim`` (as ``cable_commands`` does for a whole plan, one step at a
+    time) and advances the plant across ``gap`` by DT; ``measure()`` returns the camera frames
+    that have arrived by then: taken at the camera's frame rate (at the first control sample
+    at or after each frame time), rendered and tracked, each ``latency`` s late, a share
+    ``dropped`` of them lost (no marker)."""
+
+    def __init__(self, sim: Simulator, gap: RealityGap = NO_GAP, *, latency: float = 0.0, dropped: float = 0.0,
+                 seed: int = 0):
+        if not (np.isfinite(latency) and latency >= 0 and 0 <= dropped < 1):
+            raise ValueError(f"need latency >= 0 s and 0 <= dropped < 1; got {latency!r}, {dropped!r}")
+        self.sim, self.latency, self.dropped = sim, latency, dropped
+        self.plant, self.camera = CablePlant(sim.robot, sim.gravity, gap), twin_camera(sim, gap)
+        self.plant.reset(1)
+        self.model_q, self.model_qd = sim.rest_q()[None], np.zeros((1, sim.nq))
+        self.rng = np.random.default_rng(seed)
+        self.steps, self.next_frame, self.pending = 0, 0, []
+        self.states, self.q, self.commands, self.frame_times, self.tracked = [self.plant.tip_state()[0]], [self.plant.q[0]], [], [], []
+        self._film()
+
+    def command(self, u) -> None:
+        u = np.asarray(u, float).reshape(1, 1, 2)
+        q, qd = self.sim.integrate(u, self.model_q, self.model_qd)
+        delta = cable_displacements(self.sim.bend_angles(q[0]), self.sim.robot)  # (2, C): the step's ends
+        motor = cable_tensions(u[0], self.sim.robot, PRETENSION) / CABLE_STIFFNESS - 0.5 * (delta[0] + delta[1])
+        self.model_q, self.model_qd = q[:, -1], qd[:, -1]
+        self.plant.step(motor)
+        self.steps += 1
+        self.states.append(self.plant.tip_state()[0])
+        self.q.append(self.plant.q[0])
+        self.commands.append(motor[0])
+        self._film()
+
+    def measure(self) -> list:
+        now = self.steps * DT + 1e-9
+        arrived = [(taken, position) for arrival, taken, position in self.pending if arrival <= now]
+        self.pending = [frame for frame in self.pending if frame[0] > now]
+        return arrived
+
+    def _film(self):
+        now = self.steps * DT
+        while self.next_frame / self.camera.fps <= now + 1e-9:
+            if self.rng.random() < self.dropped:
+                position = np.full(3, np.nan)
+            else:
+                positions, _ = self.plant.sim.centerline(self.plant.q)
+                frames = vision.render(positions[:, -1], self.camera, self.rng, centerlines=positions)
+                position = vision.track(frames, self.camera)[0]
+            self.pending.append((now + self.latency, now, position))
+            self.frame_times.append(now)
+            self.tracked.append(position)
+            self.next_frame += 1
+
+
+LOOPS = ("open", "closed")
+
+
+def run_twin(controller, references, sim: Simulator, gap: RealityGap, *, loop: str = "open", correction=None,
+             condition: str = "reference", repetitions: int = 1, camera_latency: float = 0.0, dropped: float = 0.0,
+             command_dir=None, u_limit: float = U_MAX, seed: int = 0):
+    """The hardware experiment on the twin, for every reference: ``loop="open"`` plans it with
+    ``controller`` (trained on the model ``sim``), turns the plan into motor commands through
+    ``sim``, replays them on the plant across ``gap`` (all references in one batch) and films
+    the run; ``loop="closed"`` runs ``loop.run_loop`` against a ``TwinRig`` (the camera in the
+    loop, ``camera_latency`` s late, a share ``dropped`` of frames lost; ``correction`` and
+    ``condition`` as in ``run_loop``, its default gains if None; ``repetitions`` > 1 learns a
+    feedforward across that many runs, ``loop.learn_by_repetition``, and scores the last). Commands go to ``command_dir`` as CSV if given.
+    Returns a DataFrame (one row per reference: RMSE through the camera and of the true tip,
+    clipped commands and watchdog events) and {name: dict(u, commands, states, q, frame_times,
+    tracked)}."""
+    check_choice(loop, "loop", LOOPS)
+    runs = _open_runs(controller, references, sim, gap, u_limit, seed) if loop == "open" else {
+        r.name: _closed_run(controller, r, sim, gap, dict(correction=correction or PI(), condition=condition, u_limit=u_limit),
+                            repetitions, camera_latency, dropped, seed + k)
+        for k, r in enumerate(references)}
+    rows = []
+    for r in references:
+        run = runs[r.name]
+        if command_dir is not None:
+            write_commands(Path(command_dir) / f"{r.name}.csv", run["commands"])
+        rows.append(dict(reference=r.name, family=r.family, gravity=sim.gravity, loop=loop,
+                         rmse_mm=1e3 * tracked_rmse(run["frame_times"], run["tracked"], r),
+                         rmse_true_mm=1e3 * tracking_rmse(run["states"], r.states, r.mask),
+                         peak_speed=peak_speed(run["states"], r.mask),
+                         lost_frames=int(np.isnan(run["tracked"]).any(1).sum()), clipped=run["clipped"],
+                         watchdog_events=run["watchdog_events"]))
+    return pd.DataFrame(rows), runs
+
+
+def _open_runs(controller, references, sim, gap, u_limit, seed) -> dict:
     plans, padded = plan_all(controller, references, u_limit)
     commands = cable_commands(padded, sim)
     plant = CablePlant(sim.robot, sim.gravity, gap)
     replayed = plant.replay(commands)
     camera = twin_camera(sim, gap)
-    rows, runs = [], {}
+    runs = {}
     for k, (r, u) in enumerate(zip(references, plans)):
         n = len(u)
-        run = dict(u=u, commands=commands[k, :n], states=replayed["states"][k, : n + 1], q=replayed["q"][k, : n + 1])
-        if command_dir is not None:
-            write_commands(Path(command_dir) / f"{r.name}.csv", run["commands"])
+        run = dict(u=u, commands=commands[k, :n], states=replayed["states"][k, : n + 1], q=replayed["q"][k, : n + 1],
+                   clipped=0, watchdog_events=0)
         run["frame_times"], run["tracked"] = observe_run(plant.sim, run["q"], camera, seed=seed + k)
-        rows.append(dict(reference=r.name, family=r.family, gravity=sim.gravity,
-                         rmse_mm=1e3 * tracked_rmse(run["frame_times"], run["tracked"], r),
-                         rmse_true_mm=1e3 * tracking_rmse(run["states"], r.states, r.mask),
-                         peak_speed=peak_speed(run["states"], r.mask),
-                         lost_frames=int(np.isnan(run["tracked"]).any(1).sum())))
         runs[r.name] = run
-    return pd.DataFrame(rows), runs
+    return runs
+
+
+def _closed_run(controller, reference, sim, gap, loop_options, repetitions, latency, dropped, seed) -> dict:
+    def make_rig():
+        return TwinRig(sim, gap, latency=latency, dropped=dropped, seed=seed)
+
+    result, rig = learn_by_repetition(controller, reference, make_rig, repetitions=repetitions, **loop_options)[-1]
+    return dict(u=result.u, commands=np.array(rig.commands), states=np.array(rig.states), q=np.array(rig.q),
+                frame_times=np.array(rig.frame_times), tracked=np.array(rig.tracked), clipped=result.clipped,
+                watchdog_events=result.watchdog_events, estimates=result.estimates)
 
 
 def write_commands(path, commands, dt: float = DT):

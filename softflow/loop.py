@@ -1,0 +1,160 @@
+"""Closed-loop tracking: every DT, the inverse model's u for the estimated tip state and the
+next reference state, plus a correction of the tip error, sent to the robot.
+
+One function, ``run_loop``, drives the hardware twin (``hardware.TwinRig``) and a real rig
+alike: it only calls ``measure()``, which returns the camera frames that arrived since the
+last call as (time taken, (3,) position) pairs, and ``command(u)``, which applies u for one
+control period (a real rig paces the loop there; the twin advances its clock). A frame
+without the marker (NaN), or a ``measure()`` that raises, is a lost frame; when more than
+``watchdog_frames`` frames in a row are lost, the loop holds the last command it sent with
+the marker in sight and records the event, until the marker is back.
+
+The correction is PI on the tip error through the statics: du = J^+ (kp e + ki int e), J the
+rod's static Jacobian dp/du at the current input (the same map the ILC floor learns
+through), integrating only while the command is not clipped (anti-windup). Across
+repetitions of the same reference, ``learn_by_repetition`` adds a feedforward learned from
+each run's camera error (ILC).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import floor
+from .checks import check_choice
+from .data import DT, U_MAX
+from .estimation import TipEstimator
+from .sim import Simulator
+
+WATCHDOG_FRAMES = 5  # lost frames in a row (1/6 s at 30 fps) before the loop holds its command
+
+
+@dataclass(frozen=True)
+class PI:
+    """Gains of the tip-error correction (dimensionless kp, ki in 1/s: the share of the static
+    error corrected per step, and per second of accumulated error). kp = ki = 0: none.
+    Default: integral action alone, slow (ki = 0.5/s), because the correction acts through the
+    rod's lightly damped first mode and the camera's delay: ki = 2/s already rings on a hold
+    (tests/test_loop.py) and kp = 0.05 made the twin's tracking worse (docs/assumptions.md)."""
+
+    kp: float = 0.0
+    ki: float = 0.5
+
+    def __post_init__(self):
+        if not (math.isfinite(self.kp) and math.isfinite(self.ki) and self.kp >= 0 and self.ki >= 0):
+            raise ValueError(f"PI gains must be finite and >= 0; got kp={self.kp!r}, ki={self.ki!r}")
+
+
+NO_CORRECTION = PI(0.0, 0.0)
+
+
+@dataclass
+class LoopRun:
+    """What a closed-loop run did: commands (T, 2), estimated states (T, 6), the frames it
+    received (time taken, position), and the counts a run report needs."""
+
+    u: np.ndarray
+    estimates: np.ndarray
+    frames: list = field(default_factory=list)
+    clipped: int = 0  # commands clipped to the actuator range (per channel)
+    watchdog_events: int = 0  # times the marker was lost long enough to hold the command
+    held_steps: int = 0  # control steps spent holding
+    lost_frames: int = 0  # frames without a marker, and measure() calls that raised
+
+
+CONDITIONS = ("reference", "estimate")
+
+
+def run_loop(controller, reference, measure, command, *, correction: PI = PI(), condition: str = "reference",
+             feedforward=None, watchdog_frames: int = WATCHDOG_FRAMES, u_limit: float = U_MAX,
+             estimator_options: dict | None = None) -> LoopRun:
+    """Track ``reference`` (a ``trajectories.Reference`` that starts at the rod's rest) in
+    closed loop; see the module docstring. ``feedforward`` (T, 2) is added to every command
+    (e.g. learned across repetitions). ``condition``: the inverse model's u for (x*_t, x*_t+1),
+    the plan, so that feedback comes from the correction alone ("reference"), or for
+    (estimated x_t, x*_t+1) ("estimate"). A reference outside the model's workspace is refused
+    before the first command. ``estimator_options`` go to ``estimation.TipEstimator``."""
+    check_choice(condition, "condition", CONDITIONS)
+    X = reference.states
+    controller.check_workspace(X)
+    if controller.lean is None:
+        raise ValueError(f"{controller.name} has no one-transition step; closed loop needs an MLP or RF model")
+    if not (isinstance(watchdog_frames, int) and watchdog_frames >= 1):
+        raise ValueError(f"watchdog_frames must be a positive integer; got {watchdog_frames!r}")
+    T = reference.n_steps
+    extra = np.zeros((T, 2)) if feedforward is None else np.asarray(feedforward, float)
+    if extra.shape != (T, 2):
+        raise ValueError(f"feedforward must have shape ({T}, 2); got {extra.shape}")
+    table = Simulator(controller.robot, controller.gravity).static_table()
+    estimator = TipEstimator(X[0, :3], **(estimator_options or {}))
+    run = LoopRun(np.zeros((T, 2)), np.zeros((T, 6)))
+    integral, u_prev, safe = np.zeros(3), np.zeros(2), np.zeros(2)
+    lost_in_a_row, holding = 0, False
+    for t in range(T):
+        frames = _frames(measure)
+        for taken, position in frames or ():
+            estimator.update(taken, position)
+            run.frames.append((taken, position))
+        for found in [False] if frames is None else [np.all(np.isfinite(p)) for _, p in frames]:
+            lost_in_a_row = 0 if found else lost_in_a_row + 1
+            run.lost_frames += not found
+        x_hat = estimator.state(max(t * DT, estimator.t if estimator.t is not None else 0.0))
+        run.estimates[t] = x_hat
+        if lost_in_a_row > watchdog_frames:
+            run.watchdog_events += not holding
+            run.held_steps += 1
+            holding, u = True, safe
+        else:
+            holding = False
+            error = X[t, :3] - x_hat[:3]
+            _, J = table.tip(np.clip(u_prev, -table.u_range, table.u_range)[None])
+            model = controller.step(x_hat if condition == "estimate" else X[t], X[t + 1], clip=False)
+            wanted = model + extra[t] + np.linalg.pinv(J[0]) @ (correction.kp * error + correction.ki * integral)
+            u = np.clip(wanted, -u_limit, u_limit)
+            run.clipped += int(np.sum(u != wanted))
+            if np.array_equal(u, wanted):  # anti-windup: no integration into saturation
+                integral += error * DT
+            safe = u
+        command(u)
+        run.u[t], u_prev = u, u
+    return run
+
+
+def _frames(measure):
+    """The frames ``measure()`` returns; None when it raised (a camera that fails is a lost
+    frame for the watchdog, not a crash)."""
+    try:
+        return [(float(taken), np.asarray(position, float).reshape(3)) for taken, position in measure()]
+    except Exception:
+        return None
+
+
+def learn_by_repetition(controller, reference, make_rig, *, repetitions: int = 5, gain: float = 0.5,
+                        **loop_options) -> list:
+    """Run ``reference`` ``repetitions`` times, each from rest on a fresh ``make_rig()`` (an
+    object with ``measure`` and ``command``), each with a feedforward learned from the previous
+    runs' camera-measured tip error: iterative learning control across repetitions, with the
+    ILC floor's learning law through the *model* rod (``floor.correction``). The loop's own
+    correction still acts within each run. Returns [(LoopRun, rig)] per repetition."""
+    if not (isinstance(repetitions, int) and repetitions >= 1 and 0 < gain <= 1):
+        raise ValueError(f"need an integer repetitions >= 1 and 0 < gain <= 1; got {repetitions!r}, {gain!r}")
+    sim = Simulator(controller.robot, controller.gravity)
+    table, learning = sim.static_table(), floor.learning_filter(sim, reference.n_steps)
+    feedforward, runs = np.zeros((reference.n_steps, 2)), []
+    for _ in range(repetitions):
+        rig = make_rig()
+        run = run_loop(controller, reference, rig.measure, rig.command, feedforward=feedforward, **loop_options)
+        runs.append((run, rig))
+        error = reference.states[1:, :3] - _measured_path(run.frames, reference.n_steps)
+        feedforward = feedforward + gain * floor.correction(table, run.u, error, learning)
+    return runs
+
+
+def _measured_path(frames, n_steps: int) -> np.ndarray:
+    """Tip positions at samples 1..n_steps, interpolated between the frames that found the marker."""
+    taken = np.array([t for t, p in frames if np.all(np.isfinite(p))])
+    seen = np.array([p for t, p in frames if np.all(np.isfinite(p))])
+    times = np.arange(1, n_steps + 1) * DT
+    return np.stack([np.interp(times, taken, seen[:, k]) for k in range(3)], -1)
