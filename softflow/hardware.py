@@ -125,6 +125,25 @@ def cable_commands(u, sim: Simulator, stiffness: float = CABLE_STIFFNESS, preten
     return tensions / stiffness - 0.5 * (delta[:, :-1] + delta[:, 1:])
 
 
+class StepCommands:
+    """Motor commands one control step at a time, for a loop: ``commands(u)`` (2,) -> (C,) in
+    m, through the model rod ``sim`` integrated alongside, exactly as ``cable_commands`` turns
+    a whole plan (the cable path change averaged over the step)."""
+
+    def __init__(self, sim: Simulator, stiffness: float = CABLE_STIFFNESS, pretension: float = PRETENSION):
+        if not stiffness > 0:
+            raise ValueError(f"stiffness must be positive; got {stiffness!r}")
+        self.sim, self.stiffness, self.pretension = sim, stiffness, pretension
+        self.q, self.qd = sim.rest_q()[None], np.zeros((1, sim.nq))
+
+    def __call__(self, u) -> np.ndarray:
+        u, _ = as_real_array(np.reshape(u, (1, 1, 2)), "u", (1, 1, 2))
+        q, qd = self.sim.integrate(u, self.q, self.qd)
+        delta = cable_displacements(self.sim.bend_angles(q[0]), self.sim.robot)  # (2, C): the step's ends
+        self.q, self.qd = q[:, -1], qd[:, -1]
+        return cable_tensions(u[0], self.sim.robot, self.pretension)[0] / self.stiffness - 0.5 * (delta[0] + delta[1])
+
+
 class CablePlant:
     """The twin robot: motor positions in, rod motion out, across a ``RealityGap``."""
 
@@ -218,8 +237,7 @@ def tracked_rmse(frame_times, tracked, reference) -> float:
 
 class TwinRig:
     """The twin as a rig for ``loop.run_loop``. ``command(u)`` turns u into motor commands
-    through the model rod ``sim`` (as ``cable_commands`` does for a whole plan, one step at a
-    time) and advances the plant across ``gap`` by DT; ``measure()`` returns the camera frames
+    (``StepCommands``) and advances the plant across ``gap`` by DT; ``measure()`` returns the camera frames
     that have arrived by then: taken at the camera's frame rate (at the first control sample
     at or after each frame time), rendered and tracked, each ``latency`` s late, a share
     ``dropped`` of them lost (no marker)."""
@@ -231,23 +249,19 @@ class TwinRig:
         self.sim, self.latency, self.dropped = sim, latency, dropped
         self.plant, self.camera = CablePlant(sim.robot, sim.gravity, gap), twin_camera(sim, gap)
         self.plant.reset(1)
-        self.model_q, self.model_qd = sim.rest_q()[None], np.zeros((1, sim.nq))
+        self.to_motors = StepCommands(sim)
         self.rng = np.random.default_rng(seed)
         self.steps, self.next_frame, self.pending = 0, 0, []
         self.states, self.q, self.commands, self.frame_times, self.tracked = [self.plant.tip_state()[0]], [self.plant.q[0]], [], [], []
         self._film()
 
     def command(self, u) -> None:
-        u = np.asarray(u, float).reshape(1, 1, 2)
-        q, qd = self.sim.integrate(u, self.model_q, self.model_qd)
-        delta = cable_displacements(self.sim.bend_angles(q[0]), self.sim.robot)  # (2, C): the step's ends
-        motor = cable_tensions(u[0], self.sim.robot, PRETENSION) / CABLE_STIFFNESS - 0.5 * (delta[0] + delta[1])
-        self.model_q, self.model_qd = q[:, -1], qd[:, -1]
-        self.plant.step(motor)
+        motor = self.to_motors(u)
+        self.plant.step(motor[None])
         self.steps += 1
         self.states.append(self.plant.tip_state()[0])
         self.q.append(self.plant.q[0])
-        self.commands.append(motor[0])
+        self.commands.append(motor)
         self._film()
 
     def measure(self) -> list:

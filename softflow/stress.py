@@ -69,6 +69,13 @@ def break_points(breakdown: pd.DataFrame, fraction: float = BREAK_FRACTION) -> p
     return pd.DataFrame(rows).set_index("model")
 
 
+def per_revolution(breakdown: pd.DataFrame, models) -> pd.DataFrame:
+    """y-z RMSE (mm) per revolution (rows) and model (columns), and which model is lower on it."""
+    table = breakdown.pivot(index=["revolution", "period_s", "reference_speed"], columns="model",
+                            values="rmse_yz_mm")[list(models)]
+    return table.assign(lower=table.idxmin(axis=1))
+
+
 def actuation_spread(samples: np.ndarray) -> np.ndarray:
     """Per-step spread (N) of plans drawn with different noise, (n, T, 2) -> (T,): the norm of
     the per-channel standard deviation over the draws."""

@@ -139,3 +139,31 @@ def test_sag_calibration_recovers_the_plants_rho_over_e():
     assert np.linalg.norm(tip - rest_tip) < 1e-4  # within 0.1 mm
     with pytest.raises(ValueError, match="metres"):
         hardware.calibrate_sag(HW_ROBOT, 1e3 * rest_tip)  # millimetres by mistake
+
+
+def test_step_commands_equal_the_command_file_of_the_same_plan():
+    sim = Simulator(HW_ROBOT, "vertical")
+    u = np.random.default_rng(3).uniform(-2, 2, (1, 30, 2))
+    stepper = hardware.StepCommands(sim)
+    np.testing.assert_allclose(np.array([stepper(u_t) for u_t in u[0]]), hardware.cable_commands(u, sim)[0], atol=1e-12)
+
+
+def test_twin_rig_delivers_frames_late_and_loses_the_share_it_is_told():
+    sim = Simulator(HW_ROBOT, "vertical")
+    rig = hardware.TwinRig(sim, latency=0.066, dropped=0.5, seed=1)
+    received = []
+    for step in range(1, 61):
+        rig.command(np.zeros(2))
+        arrived = rig.measure()
+        assert all(step * DT - taken >= 0.066 - 1e-9 for taken, _ in arrived)
+        received += arrived
+    taken = [t for t, _ in received]
+    in_flight = [t for t in rig.frame_times if t + 0.066 > 60 * DT + 1e-9]
+    assert taken == sorted(taken) and len(in_flight) == 3 and len(received) == len(rig.frame_times) - len(in_flight)
+    lost = sum(np.isnan(p).any() for _, p in received)
+    assert 0.25 < lost / len(received) < 0.75
+    rest = sim.tip_positions(sim.rest_q()[None])[0]
+    seen = np.array([p for _, p in received if np.isfinite(p).all()])
+    assert np.abs(seen - rest).max() < 2e-3  # the unactuated rod stays at rest, seen within the camera's error
+    with pytest.raises(ValueError, match="dropped"):
+        hardware.TwinRig(sim, dropped=1.0)

@@ -41,6 +41,9 @@ def test_breakdown_scores_each_revolution_and_finds_the_break():
     first = stress.break_points(breakdown, fraction=0.03).loc["model"]  # 6 mm on a 0.2 m rod
     assert first.breaks_at_revolution == 2 and first.period_s == pytest.approx(1.0)
     assert np.isnan(stress.break_points(breakdown, fraction=0.2).loc["model"].period_s)
+    other = breakdown.assign(model="other", rmse_yz_mm=[1.0, 1.0, 1.0])
+    table = stress.per_revolution(pd.concat([breakdown, other]), ["model", "other"])
+    assert table["lower"].tolist() == ["model", "other", "other"]
 
 
 def test_burst_summary_reports_speed_rmse_and_saturation():
