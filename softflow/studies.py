@@ -193,24 +193,31 @@ LOOP_MODES = {  # mode -> hardware.run_twin options (repetitions: the profile's)
 }
 LOOP_GRID = {
     "ci": dict(configs=("vertical",), modes=("open", "closed", "closed-ilc"), references=1, repetitions=2,
-               latencies=(), dropped=False),
+               latencies=(), dropped=False, gaps=()),
     "paper": dict(configs=("vertical", "horizontal"), modes=tuple(LOOP_MODES), references=5, repetitions=5,
-                  latencies=(0.0, 0.066), dropped=True),
+                  latencies=(0.0, 0.066), dropped=True, gaps=hardware.GAP_TERMS),
 }
 CAMERA_LATENCY = 0.033  # s: one frame at 30 fps
 
 
 def _loop_cells(profile_name: str) -> list[dict]:
     grid = LOOP_GRID[profile_name]
-    cell = dict(study="closed_loop", model="rf-fwd", seed=0, latency=CAMERA_LATENCY, dropped=0.0)
+    cell = dict(study="closed_loop", model="rf-fwd", seed=0, latency=CAMERA_LATENCY, dropped=0.0, gap="typical")
     cells = [dict(cell, gravity=g, mode=mode) for g in grid["configs"] for mode in grid["modes"]]
     cells += [dict(cell, gravity=g, mode="closed", latency=latency) for g in grid["configs"] for latency in grid["latencies"]]
-    return cells + [dict(cell, gravity=g, mode="closed", dropped=0.1) for g in grid["configs"] if grid["dropped"]]
+    cells += [dict(cell, gravity=g, mode="closed", dropped=0.1) for g in grid["configs"] if grid["dropped"]]
+    return cells + [dict(cell, gravity=g, mode=mode, gap=f"2x {term}") for term in grid["gaps"]
+                    for g in grid["configs"] for mode in ("open", "closed")]
+
+
+def _gap(name: str) -> hardware.RealityGap:
+    """"typical" or "2x <term>": TYPICAL_GAP with that term doubled (notebook 06's sensitivity study)."""
+    return hardware.TYPICAL_GAP if name == "typical" else hardware.TYPICAL_GAP.doubled(name.removeprefix("2x "))
 
 
 def _loop_run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> list[dict]:
-    """The twin model of one configuration on Table III's references under the typical gap,
-    in one loop mode; one row per reference."""
+    """The twin model of one configuration on Table III's references under the cell's gap, in
+    one loop mode; one row per reference."""
     profile, grid, gravity = get_profile(profile_name), LOOP_GRID[profile_name], cell["gravity"]
     sim = Simulator(HW_ROBOT, gravity)
     model, _ = train.ensure_trained(cell["model"], profile, data.load_dataset(profile, HW_ROBOT, gravity, progress=False),
@@ -220,7 +227,7 @@ def _loop_run(cell: dict, profile_name: str, device: str, workdir: Path, key: st
         options["repetitions"] = grid["repetitions"]
     references = hardware_references(sim)[: grid["references"]]
     rows, _ = hardware.run_twin(Controller(model, cell["model"], robot=HW_ROBOT, gravity=gravity), references, sim,
-                                hardware.TYPICAL_GAP, camera_latency=cell["latency"], dropped=cell["dropped"], **options)
+                                _gap(cell["gap"]), camera_latency=cell["latency"], dropped=cell["dropped"], **options)
     return rows.drop(columns=["gravity", "loop"]).to_dict("records")
 
 
