@@ -36,7 +36,7 @@ SOURCES = {
     "euler_sweep.csv": "04_rf_variants.ipynb", "stress_burst.csv": "05_stress_tests.ipynb",
     "stress_complex3d.csv": "05_stress_tests.ipynb", "table3_twin.csv": "06_hardware_replay.ipynb",
     "twin_results.csv": "06_hardware_replay.ipynb", "baseline_sizes.csv": "03_baselines.ipynb",
-    "design_sweep.csv": "04_rf_variants.ipynb",
+    "design_sweep.csv": "04_rf_variants.ipynb", "twin_sensitivity.csv": "06_hardware_replay.ipynb",
     **{f"08_{name}.csv": "08_honest_table1.ipynb" for name in ("table1_ci", "table2_ci", "differences", "protocol", "speed")},
 }
 
@@ -194,6 +194,9 @@ def claims(profile: Profile) -> pd.DataFrame:
     complex3d = read_result(profile, "stress_complex3d.csv").query("model == 'rf-fwd'")
     twin = read_result(profile, "table3_twin.csv").set_index("reference").loc["mean"]
     latency = read_result(profile, "euler_sweep.csv").set_index("steps").latency_ms.loc[4]
+    gaps = read_result(profile, "twin_sensitivity.csv")
+    gaps = gaps.set_index(gaps.columns[0])  # the CSV's index column: the gap variant
+    other = gaps.drop(index=["no gap", "typical gap", "2 x youngs_modulus", "2 x density"]).horizontal.max()
     summary = read_result(profile, "08_table1_ci.csv").set_index(["family", "model"])["mean"]
     differences = read_result(profile, "08_differences.csv").set_index("family")
     protocol = read_result(profile, "08_protocol.csv").set_index("condition")
@@ -223,8 +226,10 @@ def claims(profile: Profile) -> pd.DataFrame:
          f"{complex3d.mae_u1.mean():.3f} / {complex3d.mae_u2.mean():.3f}",
          f"{complex3d.mae_u1.mean() / 0.027:.1f}x / {complex3d.mae_u2.mean() / 0.033:.1f}x the paper's"),
         ("Hardware mean RMSE, vertical / horizontal (mm)", "4.30 / 6.40", f"{twin.vertical:.2f} / {twin.horizontal:.2f}",
-         "a twin, not the robot: the horizontal error is dominated by the gap's E and rho errors, which change the "
-         "gravity sag (the sensitivity table of notebook 06)"),
+         f"a twin, not the robot: without a reality gap {gaps.loc['no gap', 'vertical']:.1f} / "
+         f"{gaps.loc['no gap', 'horizontal']:.1f} mm; horizontally the gap's E and rho errors dominate (doubling the E "
+         f"error gives {gaps.loc['2 x youngs_modulus', 'horizontal']:.1f} mm, the rho error "
+         f"{gaps.loc['2 x density', 'horizontal']:.1f} mm, any other term at most {other:.1f} mm; notebook 06)"),
         ("Inference per step, batch 1 (ms)", "0.995", f"{latency:.3f} (eager torch, N = 4)",
          "a smaller network on a CPU; `make bench` also times a lean numpy path"),
     ]
@@ -243,13 +248,15 @@ def trust_section(profile: Profile) -> list[str]:
     return ["## Table I with 95 % intervals and the floor (notebook 08)", "",
             f"Mean RMSE (mm) [95 % two-way bootstrap interval over {counts.seeds.max()} training seeds and "
             f"{counts.loc['shape', 'references']} shapes / {counts.loc['random', 'references']} random references; "
-            "seed 0 is the shipped model]. The floor is iterative learning control on the true simulator.", "",
+            "seed 0 is the shipped model]. The floor is iterative learning control on the true simulator: what an "
+            "open-loop plan reaches with an exact model and many trials (an upper bound on the true floor; notebook 08 "
+            "says on how many references it was still improving at its last trial).", "",
             markdown(table), "", "Best RF variant - best baseline, paired over references:", "",
             markdown(differences[["best_rf", "best_baseline", "difference_mm", "low", "high", "verdict"]], 3), "",
             "## The evaluation protocol's effect (notebook 08)", "",
             "Mean RMSE (mm) on the shapes with the shipped models under each choice the paper leaves open; coverage: "
             "the share of reference states as close to the training states as held-out validation states are.", "",
-            markdown(protocol), ""]
+            markdown(protocol.rename(columns=LABELS)), ""]
 
 
 def design_choices(profile: Profile) -> list[str]:
