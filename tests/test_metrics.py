@@ -2,6 +2,7 @@
 import numpy as np
 import pytest
 
+from softflow.data import DT
 from softflow.metrics import actuation_mae, input_energy, latency, peak_speed, phase_lag, tracking_rmse
 
 
@@ -55,3 +56,18 @@ def test_bad_inputs_are_rejected():
         phase_lag(np.zeros(50), np.zeros(50), 0.01)
     with pytest.raises(ValueError, match="finite"):
         input_energy(np.array([[np.nan, 0.0]]), 0.01)
+
+
+def test_a_short_reference_gets_a_phase_lag_over_fewer_shifts():
+    """A fast shape can be shorter than the 0.5 s lag window needs (103 samples): its lag is
+    searched over the shifts that fit, and a delayed copy still shows its delay."""
+    from softflow.control import score
+    from softflow.trajectories import Reference
+
+    t = np.arange(80) * DT
+    reference = np.zeros((80, 6))
+    reference[:, 1], reference[:, 2] = np.sin(2 * np.pi * t), np.cos(2 * np.pi * t)
+    achieved = reference.copy()
+    achieved[:, 1:3] = np.stack([np.sin(2 * np.pi * (t - 0.03)), np.cos(2 * np.pi * (t - 0.03))], -1)
+    row = score("m", Reference("fast", "shape", reference, np.ones(80, bool)), np.zeros((79, 2)), achieved)
+    assert row["phase_lag_s"] == pytest.approx(0.03, abs=2e-3)
