@@ -60,11 +60,9 @@ class Controller:
         x, unbatched = as_real_array(x_t, "x_t", (None, 6), allow_unbatched=True)
         x_next, _ = as_real_array(x_next, "x_next", x.shape[1:] if unbatched else x.shape)
         window = np.stack([x, x_next[None] if unbatched else x_next], 1)
-        if self.generative:
-            prior = self.statics.inverse(window[:, 1, :3]) if self.statics is not None else None
-            u = self.lean.predict(window, np.zeros((len(window), 2)), prior)
-        else:
-            u = self.lean.predict(window)
+        prior = self.statics.inverse(window[:, 1, :3]) if self.statics is not None else None
+        u = (self.lean.predict(window, np.zeros((len(window), 2)), prior) if self.generative
+             else self.lean.predict(window, prior))
         u = u.astype(np.float64)
         if clip:
             if np.abs(u).max() > U_MAX:

@@ -176,7 +176,7 @@ def test_a_plan_beyond_the_actuator_range_is_clipped_with_a_counted_warning(data
     np.testing.assert_array_equal(plans[0], u)  # evaluations clip silently: saturation is what they measure
 
 
-@pytest.mark.parametrize("name", ["mlp", "rf", "rf-physical", "rf-fwd"])
+@pytest.mark.parametrize("name", ["mlp", "mlp-physical", "rf", "rf-physical", "rf-fwd"])
 def test_step_gives_the_planned_u_of_each_transition(name, dataset, trained):
     controller = control.Controller(trained(name)[0], name)
     states = dataset.states[dataset.test[0], :60]
@@ -198,3 +198,28 @@ def test_step_checks_its_input_and_needs_a_per_step_model(dataset, trained):
         controller.step(np.full(6, np.nan), np.zeros(6))
     with pytest.raises(ValueError, match="lstm reads a window of 10 past transitions"):
         control.Controller(trained("lstm")[0], "lstm").step(np.zeros(6), np.zeros(6))
+
+
+def test_mlp_physical_regresses_the_residual_around_the_static_prior(dataset, trained):
+    """The prior without the flow: held-out u from the prior plus the learned residual is far
+    closer than the quasi-static prior alone, and a zeroed network returns the prior plus
+    the residual's mean."""
+    import copy
+
+    model, _ = trained("mlp-physical")
+    controller = control.Controller(model, "mlp-physical")
+    episode = dataset.test[0]
+    states, u_true = dataset.states[episode], dataset.u[episode]
+    prior = controller.statics.inverse(states[1:, :3])
+    rms = lambda e: float(np.sqrt(np.mean(e**2)))  # noqa: E731
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", control.SaturationWarning)
+        assert rms(controller.plan(states) - u_true) < 0.5 * rms(prior - u_true)
+        silent = copy.deepcopy(model)
+        with torch.no_grad():
+            silent.net[-1].weight.zero_()
+            silent.net[-1].bias.zero_()
+        u = control.Controller(silent, "silent").plan(states)
+    np.testing.assert_allclose(u, np.clip(prior + silent.residual_norm.mean.numpy(), -control.U_MAX, control.U_MAX),
+                               atol=1e-5)
+

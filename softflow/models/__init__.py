@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 from torch import nn
 
-from .baselines import InverseLSTM, InverseMLP, InverseTransformer
+from .baselines import InverseLSTM, InverseMLP, InverseTransformer, PhysicalMLP
 from .flow import RectifiedFlow
 from .forward import ForwardModel
 
@@ -26,6 +26,7 @@ class ModelSpec:
 
 MODELS = {
     "mlp": ModelSpec(InverseMLP),
+    "mlp-physical": ModelSpec(PhysicalMLP),
     "lstm": ModelSpec(InverseLSTM, {"context": 10}),
     "transformer": ModelSpec(InverseTransformer, {"context": 10}),
     "forward": ModelSpec(ForwardModel),

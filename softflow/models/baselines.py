@@ -1,7 +1,10 @@
 """Deterministic inverse models of the paper: MLP on (x_t, x_{t+1}); LSTM and Transformer
-over the last K transitions. All regress u_t with a mean-squared error in normalised units."""
+over the last K transitions. All regress u_t with a mean-squared error in normalised units.
+MLP-Physical (not in the paper) regresses the residual around RF-Physical's static prior:
+the prior without the generative model, to tell their benefits apart."""
 from __future__ import annotations
 
+import numpy as np
 import torch
 from torch import nn
 
@@ -9,11 +12,13 @@ from .common import InverseModel, LeanModel, mlp
 
 
 class _Regression(InverseModel):
-    def compute_loss(self, window, u, **extras):
-        return torch.mean((self.forward(window) - self.action_norm.normalize(u)) ** 2)
+    def compute_loss(self, window, u, prior=None):
+        target = u - prior if self.prior else u
+        return torch.mean((self.forward(window, prior) - self.target_norm().normalize(target)) ** 2)
 
-    def predict(self, window, **kwargs):
-        return self.action_norm.unnormalize(self.forward(window))
+    def predict(self, window, prior=None):
+        u = self.target_norm().unnormalize(self.forward(window, prior))
+        return u + prior if self.prior else u
 
 
 class InverseMLP(_Regression):
@@ -21,24 +26,41 @@ class InverseMLP(_Regression):
 
     def __init__(self, hidden: int = 256, layers: int = 3):
         super().__init__()
-        self.net = mlp([12] + [hidden] * layers + [2])
+        self.net = mlp([12 + (2 if self.prior else 0)] + [hidden] * layers + [2])
 
-    def forward(self, window):
-        return self.net(self.features(window[:, -2:])[:, 0])
+    def forward(self, window, prior=None):
+        return self.net(self.condition(window, prior))
+
+
+class PhysicalMLP(InverseMLP):
+    """u_t = u_phys(p_t+1) + MLP(x_t, x_{t+1}, u_phys): MLP-Physical."""
+
+    prior = True
+
+    def __init__(self, hidden: int = 256, layers: int = 3):
+        super().__init__(hidden, layers)
+        self._add_prior()
 
 
 class LeanMLP(LeanModel):
-    """``InverseMLP.predict`` in plain numpy float32, for the real-time step (same u to ~1e-6 N)."""
+    """``InverseMLP.predict`` (and ``PhysicalMLP``'s) in plain numpy float32, for the real-time
+    step (same u to ~1e-6 N)."""
 
     def __init__(self, model: InverseMLP):
         super().__init__(model, model.net)
+        self.prior = model.prior
 
-    def predict(self, window):
-        """u (B, 2) for state windows (B, 2, 6) [x_t, x_{t+1}]."""
+    def predict(self, window, prior=None):
+        """u (B, 2) for state windows (B, 2, 6) [x_t, x_{t+1}] (and the prior u_phys (B, 2))."""
         h = self.features(window)
+        if self.prior:
+            prior = np.asarray(prior, dtype=np.float32)
+            h = np.concatenate([h, self._normalize("prior_norm", prior)], -1)
         for k, (w, b) in enumerate(self.weights):
             h = (self.silu(h) if k else h) @ w + b
-        return h * self.buffers["action_norm.std"] + self.buffers["action_norm.mean"]
+        target = "residual_norm" if self.prior else "action_norm"
+        u = h * self.buffers[f"{target}.std"] + self.buffers[f"{target}.mean"]
+        return u + prior if self.prior else u
 
 
 class InverseLSTM(_Regression):
@@ -50,7 +72,7 @@ class InverseLSTM(_Regression):
         self.lstm = nn.LSTM(12, hidden, num_layers=layers, batch_first=True)
         self.head = nn.Linear(hidden, 2)
 
-    def forward(self, window):
+    def forward(self, window, prior=None):
         out, _ = self.lstm(self.features(window))
         return self.head(out[:, -1])
 
@@ -67,6 +89,6 @@ class InverseTransformer(_Regression):
         self.encoder = nn.TransformerEncoder(layer, layers, enable_nested_tensor=False)
         self.head = nn.Linear(d_model, 2)
 
-    def forward(self, window):
+    def forward(self, window, prior=None):
         tokens = self.embed(self.features(window)) + self.position
         return self.head(self.encoder(tokens)[:, -1])

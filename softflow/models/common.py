@@ -49,35 +49,68 @@ class InverseModel(nn.Module):
     Each transition in the window becomes the feature [x_tau, x_{tau+1} - x_tau], each
     part normalised on its own: the same information as (x_tau, x_{tau+1}), but the small
     increment that carries the dynamics is not lost next to the large state.
+
+    A model with ``prior`` learns the residual u - u_phys around the static prior u_phys(p_t+1),
+    the inverse statics of its training rod (RF-Physical, MLP-Physical): the prior is one more
+    per-step input (``extras``), normalised, and the target is the residual.
     """
 
     context = 1
-    needs_statics = False  # True: extras() needs the training rod's static table
+    prior = False
 
     def __init__(self):
         super().__init__()
         self.state_norm, self.delta_norm, self.action_norm = Normalizer(6), Normalizer(6), Normalizer(2)
 
+    def _add_prior(self):
+        """Call from a subclass's __init__ to make it a prior (residual) model."""
+        self.prior = True
+        self.prior_norm, self.residual_norm = Normalizer(2), Normalizer(2)
+
+    @property
+    def needs_statics(self) -> bool:
+        """True: extras() needs the training rod's static table."""
+        return self.prior
+
     def extras(self, states, statics=None) -> dict:
         """Per-step inputs beyond the state window, computed from states (B, T+1, 6) as
-        {name: (B, T, k) array}; passed to set_normalizer, compute_loss and predict."""
-        return {}
+        {name: (B, T, k) array}; passed to set_normalizer, compute_loss and predict: the
+        static prior u_phys(p_{t+1}) of a prior model, the inverse of ``statics`` (the
+        training rod's ``StaticTable``)."""
+        if not self.prior:
+            return {}
+        if statics is None:
+            raise ValueError(f"{type(self).__name__} with a prior needs the static table of its rod")
+        return {"prior": statics.inverse(states[:, 1:, :3])}
 
     def attach(self, **dependencies):
         """Receive the trained models the registry says this one requires (before training)."""
         if dependencies:
             raise ValueError(f"{type(self).__name__} takes no trained dependencies; got {sorted(dependencies)}")
 
-    def set_normalizer(self, states: torch.Tensor, u: torch.Tensor):
+    def set_normalizer(self, states: torch.Tensor, u: torch.Tensor, prior: torch.Tensor | None = None):
         """Fit the normalisers on training episodes: states (E, T+1, 6), u (E, T, 2)."""
         self.state_norm.fit(states[:, :-1])
         self.delta_norm.fit(states[:, 1:] - states[:, :-1])
         self.action_norm.fit(u)
+        if self.prior:
+            self.prior_norm.fit(prior)
+            self.residual_norm.fit(u - prior)
 
     def features(self, window: torch.Tensor) -> torch.Tensor:
         """(B, context+1, 6) states -> (B, context, 12) normalised transition features."""
         now, nxt = window[:, :-1], window[:, 1:]
         return torch.cat([self.state_norm.normalize(now), self.delta_norm.normalize(nxt - now)], -1)
+
+    def condition(self, window, prior=None) -> torch.Tensor:
+        """What a per-step model conditions on: the last transition's features, and the
+        normalised prior of a prior model, (B, 12 or 14)."""
+        c = self.features(window[:, -2:])[:, 0]
+        return torch.cat([c, self.prior_norm.normalize(prior)], -1) if self.prior else c
+
+    def target_norm(self) -> Normalizer:
+        """The normaliser of what the model outputs: u, or the residual u - u_phys."""
+        return self.residual_norm if self.prior else self.action_norm
 
     def compute_loss(self, window: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
         raise NotImplementedError

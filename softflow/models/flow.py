@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from .common import InverseModel, LeanModel, Normalizer, mlp
+from .common import InverseModel, LeanModel, mlp
 from .forward import ForwardModel
 
 
@@ -30,33 +30,14 @@ class RectifiedFlow(InverseModel):
             raise ValueError(f"prior must be True or False; got {prior!r}")
         if not (isinstance(steps, int) and steps >= 1):
             raise ValueError(f"steps must be a positive integer; got {steps!r}")
-        self.steps, self.tau_sampling, self.prior, self.consistency = steps, tau_sampling, prior, consistency
+        self.steps, self.tau_sampling, self.consistency = steps, tau_sampling, consistency
         self.net = mlp([2 + 1 + 12 + (2 if prior else 0)] + [hidden] * layers + [2])
         if prior:
-            self.prior_norm, self.residual_norm = Normalizer(2), Normalizer(2)
+            self._add_prior()
         if consistency:
             self.forward_model = ForwardModel().requires_grad_(False)
 
     # -- data-side hooks used by the training loop and the controller
-    @property
-    def needs_statics(self) -> bool:
-        return self.prior
-
-    def extras(self, states: np.ndarray, statics=None) -> dict:
-        """Per-step inputs beyond the state window: the static prior u_phys(p_{t+1}) (B, T, 2),
-        the inverse of ``statics`` (the training rod's ``StaticTable``)."""
-        if not self.prior:
-            return {}
-        if statics is None:
-            raise ValueError("RF-Physical needs the static table of its rod to compute its prior")
-        return {"prior": statics.inverse(states[:, 1:, :3])}
-
-    def set_normalizer(self, states, u, prior=None):
-        super().set_normalizer(states, u)
-        if self.prior:
-            self.prior_norm.fit(prior)
-            self.residual_norm.fit(u - prior)
-
     def attach(self, forward: ForwardModel | None = None):
         """RF-FWD: take the trained forward surrogate's weights; they stay frozen."""
         if self.consistency and forward is None:
@@ -65,13 +46,6 @@ class RectifiedFlow(InverseModel):
             self.forward_model.load_state_dict(forward.state_dict())
 
     # -- the flow
-    def _target_norm(self):
-        return self.residual_norm if self.prior else self.action_norm
-
-    def _condition(self, window, prior):
-        c = self.features(window[:, -2:])[:, 0]
-        return torch.cat([c, self.prior_norm.normalize(prior)], -1) if self.prior else c
-
     def velocity(self, xi, tau, condition):
         return self.net(torch.cat([xi, tau[:, None], condition], -1))
 
@@ -81,8 +55,8 @@ class RectifiedFlow(InverseModel):
         return torch.sigmoid(torch.randn(n, device=device))  # logit-normal(0, 1): more weight mid-path
 
     def compute_loss(self, window, u, prior=None):
-        condition = self._condition(window, prior)
-        xi = self._target_norm().normalize(u - prior if self.prior else u)
+        condition = self.condition(window, prior)
+        xi = self.target_norm().normalize(u - prior if self.prior else u)
         z = torch.randn_like(xi)
         tau = self._sample_tau(len(xi), xi.device)
         xi_tau = (1 - tau[:, None]) * z + tau[:, None] * xi
@@ -90,7 +64,7 @@ class RectifiedFlow(InverseModel):
         loss = torch.mean((v - (xi - z)) ** 2)
         if self.consistency:
             # one-step estimate of the endpoint from xi_tau along v (differentiable, cheap)
-            u_hat = self._target_norm().unnormalize(xi_tau + (1 - tau[:, None]) * v)
+            u_hat = self.target_norm().unnormalize(xi_tau + (1 - tau[:, None]) * v)
             if self.prior:
                 u_hat = u_hat + prior
             x, x_next = window[:, -2], window[:, -1]
@@ -100,13 +74,13 @@ class RectifiedFlow(InverseModel):
 
     def predict(self, window, prior=None, noise=None, steps: int | None = None):
         """u (B, 2): Euler integration of the flow from ``noise`` (default: fresh N(0, I))."""
-        condition = self._condition(window, prior)
+        condition = self.condition(window, prior)
         xi = torch.randn(len(window), 2, device=window.device) if noise is None else noise
         n = self.steps if steps is None else steps
         for k in range(n):
             tau = torch.full((len(xi),), k / n, device=xi.device)
             xi = xi + self.velocity(xi, tau, condition) / n
-        u = self._target_norm().unnormalize(xi)
+        u = self.target_norm().unnormalize(xi)
         return u + prior if self.prior else u
 
 
