@@ -14,10 +14,10 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from .checks import check_choice
 from .data import DT, Dataset
+from .data import coverage as data_coverage
 from .sim import Simulator
 from .trajectories import NOMINAL_SPEED, Reference, cached_references, shape_reference
 
@@ -78,16 +78,8 @@ def _lifted(sim: Simulator, reference: Reference, lift: str) -> Reference:
     return replace(reference, states=states)
 
 
-def coverage(references, dataset: Dataset, quantile: float = 0.99, max_points: int = 200_000) -> np.ndarray:
-    """Per reference, the fraction of its scored states (position and velocity) as close to
-    the training states as held-out validation states are: nearest-neighbour distance, in
-    training standard deviations, at most the ``quantile`` of the validation states' own."""
-    rng = np.random.default_rng(0)
-    train = dataset.states[dataset.train].reshape(-1, 6)
-    train = train[rng.choice(len(train), min(max_points, len(train)), replace=False)]
-    mean, std = train.mean(0), train.std(0)
-    tree = cKDTree((train - mean) / std)
-    val = dataset.states[dataset.val].reshape(-1, 6)
-    val = val[rng.choice(len(val), min(max_points // 10, len(val)), replace=False)]
-    radius = np.quantile(tree.query((val - mean) / std)[0], quantile)
-    return np.array([np.mean(tree.query((r.states[r.mask] - mean) / std)[0] <= radius) for r in references])
+def coverage(references, dataset: Dataset) -> np.ndarray:
+    """Per reference, the share of its scored states (position and velocity) that the training
+    states cover, as ``data.coverage`` measures it (as close as held-out validation states are)."""
+    train, val = dataset.states[dataset.train], dataset.states[dataset.val]
+    return np.array([data_coverage(train, r.states[r.mask], val) for r in references])
