@@ -11,7 +11,7 @@ and rebuilt, never used.
 from __future__ import annotations
 
 import shutil
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -98,6 +98,17 @@ class Dataset:
         """(x_t, x_{t+1}, u_t) of the given episodes, each (E', T, .); views when episodes is a slice."""
         X = self.states[episodes]
         return X[:, :-1], X[:, 1:], self.u[episodes]
+
+
+def subset(dataset: Dataset, n_episodes: int) -> Dataset:
+    """The dataset as if it had ``n_episodes`` episodes: the first 80 % of them train (from its
+    own train split), validation and test unchanged, so models of every size are judged on the
+    same held-out episodes. Its key names the size (a model's identity records it)."""
+    n_train = int(0.8 * n_episodes)
+    if not (isinstance(n_episodes, int) and 2 <= n_train <= len(dataset.train)):
+        raise ValueError(f"n_episodes must be an integer with 2 <= 0.8 n_episodes <= {len(dataset.train)} "
+                         f"(the training episodes there are); got {n_episodes!r}")
+    return replace(dataset, train=dataset.train[:n_train], key=f"{dataset.key}-train{n_train}")
 
 
 def split_episodes(n_episodes: int, seed: int, fractions=(0.8, 0.1)):

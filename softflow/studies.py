@@ -6,12 +6,17 @@ table1: Tables I and II with confidence intervals. Every model of the paper at i
     eight shapes and 24 random references (Rand1..Rand4 are the paper's), plus the ILC floor.
 protocol: Table I under each choice the paper leaves open (``protocol``), with the seed-0
     models (no retraining) and the ILC floor; the conditions were fixed before any ran.
+data_size: issue 15's first question, fixed before any ran: is it the prior or being
+    generative that helps? MLP, MLP-Physical, RF and RF-Physical trained on 100 / 300 / 1000 /
+    3000 episodes, 3 seeds, the same 20 000 optimiser steps each (no early stop), scored on
+    Table I's references and per step on the held-out test episodes.
 closed_loop: Table III extended: the twin's RF-FWD open loop and in closed loop (``loop``):
     integral correction, the model conditioned on the estimate instead of the reference,
     learning across repetitions; camera latency 0 / 33 / 66 ms and 10 % lost frames.
 """
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Callable
@@ -20,7 +25,7 @@ import numpy as np
 import torch
 
 from . import data, floor, hardware, train
-from .control import Controller, evaluate, score
+from .control import Controller, SaturationWarning, evaluate, score
 from .profiles import Profile, TrainConfig, get_profile
 from .protocol import Protocol, apply, coverage, shapes_at
 from .report import FLOOR
@@ -184,6 +189,41 @@ def _protocol_run(cell: dict, profile_name: str, device: str, workdir: Path, key
     return [_unnamed(row, coverage=covered[row["reference"]], speed=protocol.speed) for row in rows]
 
 
+# ---------------------------------------------------------------------------- data size
+DATA_SIZE = {
+    "ci": dict(sizes=(50, 200), models=("mlp", "mlp-physical"), seeds=(0,),
+               train=TrainConfig(epochs=3, steps_per_epoch=100, batch_size=256, warmup_steps=20, val_samples=2000,
+                                 patience=3)),
+    "paper": dict(sizes=(100, 300, 1000, 3000), models=("mlp", "mlp-physical", "rf", "rf-physical"), seeds=(0, 1, 2),
+                  train=TrainConfig(epochs=40, steps_per_epoch=500, patience=40)),  # 20 000 steps, no early stop
+}
+
+
+def _size_cells(profile_name: str) -> list[dict]:
+    grid = DATA_SIZE[profile_name]
+    return [dict(study="data_size", model=model, seed=seed, episodes=size)
+            for size in grid["sizes"] for model in grid["models"] for seed in grid["seeds"]]
+
+
+def _size_run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> list[dict]:
+    """One model trained on the first ``episodes`` episodes of the profile's dataset with the
+    study's fixed budget, scored open loop on Table I's references and per step on the
+    held-out test episodes (the same for every size)."""
+    profile, sim = get_profile(profile_name), Simulator(SIM_ROBOT)
+    dataset = data.subset(data.load_dataset(profile, progress=False), cell["episodes"])
+    config = replace(DATA_SIZE[profile_name]["train"], seed=cell["seed"])
+    path = workdir / "models" / profile_name / f"{cell['model']}-n{cell['episodes']}-seed{cell['seed']}.pt"
+    model, checkpoint = train.train(cell["model"], dataset, config, path, device=device, progress=False)
+    controller = Controller(model, cell["model"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SaturationWarning)  # per-step error: the unclipped plan is what is judged
+        u_test = controller.plan(dataset.states[dataset.test])
+    per_step = float(np.sqrt(np.mean((u_test - dataset.u[dataset.test]) ** 2)))
+    results, _ = evaluate(controller, table1_references(sim, profile_name), sim)
+    return [_unnamed(row, u_rmse_test=per_step, best_val=float(checkpoint["best_val"]))
+            for row in results.to_dict("records")]
+
+
 # ---------------------------------------------------------------------------- closed loop
 LOOP_MODES = {  # mode -> hardware.run_twin options (repetitions: the profile's)
     "open": dict(loop="open"),
@@ -235,5 +275,6 @@ STUDIES = {
     "smoke": Study(_smoke_cells, _smoke_run),
     "table1": Study(_table1_cells, _table1_run),
     "protocol": Study(_protocol_cells, _protocol_run),
+    "data_size": Study(_size_cells, _size_run),
     "closed_loop": Study(_loop_cells, _loop_run),
 }

@@ -138,3 +138,12 @@ def test_coverage_is_high_in_distribution_and_zero_far_away(tmp_path):
 def test_unknown_shape_is_rejected(sim):
     with pytest.raises(ValueError, match="shape must be one of"):
         trajectories.shape_reference(sim, "hexagon")
+
+
+def test_a_subset_trains_on_fewer_episodes_and_is_judged_on_the_same_ones(dataset):
+    small = data.subset(dataset, 10)
+    assert list(small.train) == list(dataset.train[:8])
+    assert np.array_equal(small.val, dataset.val) and np.array_equal(small.test, dataset.test)
+    assert small.key != dataset.key and small.states is dataset.states
+    with pytest.raises(ValueError, match="n_episodes"):
+        data.subset(dataset, 1000)
