@@ -63,7 +63,8 @@ def _sweep(argv):
     parser.add_argument("--workers", type=int, help="worker processes of the local cluster (default: one per core)")
     parser.add_argument("--device", default="auto", choices=sweep.DEVICES, help="auto: CUDA, else MPS, else CPU")
     parser.add_argument("--recompute", action="store_true",
-                        help="recompute the cells whose rows ship in figures/sweeps/ (cached rows in data/sweeps/ still count)")
+                        help="recompute the cells whose rows ship in figures/sweeps/ "
+                             "(cached rows in data/sweeps/ still count)")
     args = parser.parse_args(argv)
     start = time.perf_counter()
     try:

@@ -35,8 +35,9 @@ def ilc_plans(sim: Simulator, references, *, iterations: int = ITERATIONS, cutof
               gain: float = GAIN, u_limit: float = U_MAX, start_q=None, progress: bool = False):
     """The best plan ILC finds for each reference within ``iterations`` trials, all references
     in one batched rollout per trial (from rest, or from ``start_q`` as in ``control.evaluate``).
-    Starts from the quasi-static plan (inverse statics of the reference tip). Returns the best plans, the states they reach (one (T+1, 6) per reference)
-    and the history of each reference's RMSE in mm, (iterations + 1, R)."""
+    Starts from the quasi-static plan (inverse statics of the reference tip). Returns the best
+    plans, the states they reach (one (T+1, 6) per reference) and the history of each
+    reference's RMSE in mm, (iterations + 1, R)."""
     if not (isinstance(iterations, int) and iterations >= 0):
         raise ValueError(f"iterations must be a non-negative integer; got {iterations!r}")
     if not (0 < cutoff_hz < 0.5 / DT and 0 < gain <= 1):

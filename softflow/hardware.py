@@ -252,7 +252,8 @@ class TwinRig:
         self.to_motors = StepCommands(sim)
         self.rng = np.random.default_rng(seed)
         self.steps, self.next_frame, self.pending = 0, 0, []
-        self.states, self.q, self.commands, self.frame_times, self.tracked = [self.plant.tip_state()[0]], [self.plant.q[0]], [], [], []
+        self.states, self.q = [self.plant.tip_state()[0]], [self.plant.q[0]]
+        self.commands, self.frame_times, self.tracked = [], [], []
         self._film()
 
     def command(self, u) -> None:
@@ -297,13 +298,15 @@ def run_twin(controller, references, sim: Simulator, gap: RealityGap, *, loop: s
     the run; ``loop="closed"`` runs ``loop.run_loop`` against a ``TwinRig`` (the camera in the
     loop, ``camera_latency`` s late, a share ``dropped`` of frames lost; ``correction`` and
     ``condition`` as in ``run_loop``, its default gains if None; ``repetitions`` > 1 learns a
-    feedforward across that many runs, ``loop.learn_by_repetition``, and scores the last). Commands go to ``command_dir`` as CSV if given.
+    feedforward across that many runs, ``loop.learn_by_repetition``, and scores the last).
+    Commands go to ``command_dir`` as CSV if given.
     Returns a DataFrame (one row per reference: RMSE through the camera and of the true tip,
     clipped commands and watchdog events) and {name: dict(u, commands, states, q, frame_times,
     tracked)}."""
     check_choice(loop, "loop", LOOPS)
     runs = _open_runs(controller, references, sim, gap, u_limit, seed) if loop == "open" else {
-        r.name: _closed_run(controller, r, sim, gap, dict(correction=correction or PI(), condition=condition, u_limit=u_limit),
+        r.name: _closed_run(controller, r, sim, gap,
+                            dict(correction=correction or PI(), condition=condition, u_limit=u_limit),
                             repetitions, camera_latency, dropped, seed + k)
         for k, r in enumerate(references)}
     rows = []

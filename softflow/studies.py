@@ -244,7 +244,8 @@ def _loop_cells(profile_name: str) -> list[dict]:
     grid = LOOP_GRID[profile_name]
     cell = dict(study="closed_loop", model="rf-fwd", seed=0, latency=CAMERA_LATENCY, dropped=0.0, gap="typical")
     cells = [dict(cell, gravity=g, mode=mode) for g in grid["configs"] for mode in grid["modes"]]
-    cells += [dict(cell, gravity=g, mode="closed", latency=latency) for g in grid["configs"] for latency in grid["latencies"]]
+    cells += [dict(cell, gravity=g, mode="closed", latency=latency)
+              for g in grid["configs"] for latency in grid["latencies"]]
     cells += [dict(cell, gravity=g, mode="closed", dropped=0.1) for g in grid["configs"] if grid["dropped"]]
     return cells + [dict(cell, gravity=g, mode=mode, gap=f"2x {term}") for term in grid["gaps"]
                     for g in grid["configs"] for mode in ("open", "closed")]
@@ -260,8 +261,8 @@ def _loop_run(cell: dict, profile_name: str, device: str, workdir: Path, key: st
     one loop mode; one row per reference."""
     profile, grid, gravity = get_profile(profile_name), LOOP_GRID[profile_name], cell["gravity"]
     sim = Simulator(HW_ROBOT, gravity)
-    model, _ = train.ensure_trained(cell["model"], profile, data.load_dataset(profile, HW_ROBOT, gravity, progress=False),
-                                    HW_ROBOT, gravity, device=device)
+    dataset = data.load_dataset(profile, HW_ROBOT, gravity, progress=False)
+    model, _ = train.ensure_trained(cell["model"], profile, dataset, HW_ROBOT, gravity, device=device)
     options = dict(LOOP_MODES[cell["mode"]])
     if "repetitions" in options:
         options["repetitions"] = grid["repetitions"]
