@@ -1,0 +1,33 @@
+"""System identification recovers a known reality gap from a filmed excitation of the twin's
+plant (an exact recording: the fit, not the camera, is under test here)."""
+import numpy as np
+import pytest
+
+from softflow import hardware, identification
+from softflow.data import DT
+from softflow.robots import HW_ROBOT
+from softflow.sim import Simulator
+
+
+def test_identify_recovers_e_eta_rho_and_the_motor_lag():
+    sim = Simulator(HW_ROBOT, "vertical")
+    commands = identification.excitation_commands(sim, seconds=1.0)
+    truth = hardware.RealityGap(youngs_modulus=-0.15, damping=0.2, density=0.1, motor_lag=0.02)
+    states = hardware.CablePlant(sim.robot, sim.gravity, truth).replay(commands[None])["states"][0]
+    frame_times = np.arange(0, len(commands) * DT + 1e-9, 1 / 30)
+    t = np.arange(len(commands) + 1) * DT
+    tracked = np.stack([np.interp(frame_times, t, states[:, k]) for k in range(3)], -1)
+    tracked[5] = np.nan  # a frame without the marker is left out
+    fit = identification.identify(sim, commands, frame_times, tracked)
+    for name in ("youngs_modulus", "damping", "density"):
+        assert getattr(fit.gap, name) == pytest.approx(getattr(truth, name), abs=1e-3)
+    assert fit.gap.motor_lag == pytest.approx(0.02, abs=1e-4) and fit.rmse_mm < 0.01
+
+
+def test_identify_refuses_a_recording_without_enough_frames():
+    sim = Simulator(HW_ROBOT, "vertical")
+    commands = np.zeros((50, HW_ROBOT.n_cables))
+    with pytest.raises(ValueError, match="at least 10 frames"):
+        identification.identify(sim, commands, np.arange(5) / 30, np.zeros((5, 3)))
+    with pytest.raises(ValueError, match="tracked must have shape"):
+        identification.identify(sim, commands, np.arange(20) / 30, np.zeros((19, 3)))
