@@ -149,4 +149,5 @@ class LeanModel:
 
     @staticmethod
     def silu(h):
-        return h / (1 + np.exp(-h))
+        """h sigmoid(h), without overflow far below zero (there it is 0 to float32 precision)."""
+        return h / (1 + np.exp(-np.maximum(h, -80.0)))
