@@ -10,7 +10,7 @@ import torch
 
 from .checks import as_real_array, check_choice
 from .data import DT, U_MAX
-from .metrics import actuation_mae, input_energy, phase_lag, tracking_rmse
+from .metrics import actuation_mae, fitting_lag, input_energy, phase_lag, tracking_rmse
 from .models.baselines import InverseMLP, LeanMLP
 from .models.common import one_thread
 from .models.flow import LeanFlow, RectifiedFlow
@@ -219,10 +219,10 @@ def score(name: str, reference, u, achieved) -> dict:
     """One row of Tables I and II: a plan ``u`` (T, 2) of ``name`` that ran to ``achieved``
     (T+1, 6), scored on the reference's masked samples."""
     masked = reference.mask
-    longest = min(0.5, ((int(masked.sum()) - 3) // 2 - 0.5) * DT)  # lags up to 0.5 s, fewer on a short reference
     row = dict(model=name, reference=reference.name, family=reference.family,
                rmse_mm=1e3 * tracking_rmse(achieved, reference.states, masked),
-               phase_lag_s=phase_lag(achieved[masked, 1:3], reference.states[masked, 1:3], DT, max_lag=longest),
+               phase_lag_s=phase_lag(achieved[masked, 1:3], reference.states[masked, 1:3], DT,
+                                     max_lag=fitting_lag(int(masked.sum()), DT)),
                input_energy=input_energy(u, DT))
     if reference.u_true is not None:
         row["mae_u1"], row["mae_u2"] = actuation_mae(u, reference.u_true)

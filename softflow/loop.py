@@ -1,5 +1,6 @@
-"""Closed-loop tracking: every DT, the inverse model's u for the estimated tip state and the
-next reference state, plus a correction of the tip error, sent to the robot.
+"""Closed-loop tracking: every DT, the inverse model's u for the next reference state (from
+the reference's current state, or from the estimated one), plus a correction of the
+estimated tip error, sent to the robot.
 
 One function, ``run_loop``, drives the hardware twin (``hardware.TwinRig``) and a real rig
 alike: it only calls ``measure()``, which returns the camera frames that arrived since the
@@ -109,9 +110,10 @@ def run_loop(controller, reference, measure, command, *, correction: PI = PI(), 
         else:
             holding = False
             error = X[t, :3] - x_hat[:3]
-            _, J = table.tip(np.clip(u_prev, -table.u_range, table.u_range)[None])
-            model = controller.step(x_hat if condition == "estimate" else X[t], X[t + 1], clip=False)
-            wanted = model + extra[t] + np.linalg.pinv(J[0]) @ (correction.kp * error + correction.ki * integral)
+            wanted = controller.step(x_hat if condition == "estimate" else X[t], X[t + 1], clip=False) + extra[t]
+            if correction != NO_CORRECTION:
+                _, J = table.tip(np.clip(u_prev, -table.u_range, table.u_range)[None])
+                wanted = wanted + np.linalg.pinv(J[0]) @ (correction.kp * error + correction.ki * integral)
             u = np.clip(wanted, -u_limit, u_limit)
             run.clipped += int(np.sum(u != wanted))
             if np.array_equal(u, wanted):  # anti-windup: no integration into saturation
@@ -141,14 +143,16 @@ def learn_by_repetition(controller, reference, make_rig, *, repetitions: int = 5
     if not (isinstance(repetitions, int) and repetitions >= 1 and 0 < gain <= 1):
         raise ValueError(f"need an integer repetitions >= 1 and 0 < gain <= 1; got {repetitions!r}, {gain!r}")
     sim = Simulator(controller.robot, controller.gravity)
-    table, learning = sim.static_table(), floor.learning_filter(sim, reference.n_steps)
+    learning = floor.learning_filter(sim, reference.n_steps) if repetitions > 1 else None  # a rollout: only if used
     feedforward, runs = np.zeros((reference.n_steps, 2)), []
     for _ in range(repetitions):
+        if runs:  # learn from the last run
+            last = runs[-1][0]
+            error = reference.states[1:, :3] - _measured_path(last.frames, reference.n_steps)
+            feedforward = feedforward + gain * floor.correction(sim.static_table(), last.u, error, learning)
         rig = make_rig()
-        run = run_loop(controller, reference, rig.measure, rig.command, feedforward=feedforward, **loop_options)
-        runs.append((run, rig))
-        error = reference.states[1:, :3] - _measured_path(run.frames, reference.n_steps)
-        feedforward = feedforward + gain * floor.correction(table, run.u, error, learning)
+        runs.append((run_loop(controller, reference, rig.measure, rig.command, feedforward=feedforward,
+                              **loop_options), rig))
     return runs
 
 

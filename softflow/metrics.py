@@ -62,6 +62,14 @@ def phase_lag(achieved, reference, dt: float, max_lag: float = 0.5) -> float:
     return float((lags[i] + offset) * dt)
 
 
+def fitting_lag(n: int, dt: float, max_lag: float = 0.5) -> float:
+    """The ``max_lag`` to give ``phase_lag`` for ``n`` samples: ``max_lag``, or less on a signal
+    too short for it (a shape run fast). Half a sample below a whole number of samples, so
+    phase_lag's ceil(max_lag / dt) lands on it whatever the rounding."""
+    shifts = min(int(np.ceil(max_lag / dt)), (n - 3) // 2)
+    return (shifts - 0.5) * dt
+
+
 def input_energy(u, dt: float) -> float:
     """E_u = sum_t ||u_t||^2 dt (N^2 s)."""
     u, _ = as_real_array(u, "u", (None, 2))

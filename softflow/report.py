@@ -239,9 +239,9 @@ def claims(profile: Profile) -> pd.DataFrame:
 def trust_section(profile: Profile) -> list[str]:
     """Table I with intervals and the floor, the paired difference and the protocol table (notebook 08)."""
     summary = read_result(profile, "08_table1_ci.csv")
-    summary["cell"] = [f"{r.mean:.2f} [{r.low:.2f}, {r.high:.2f}]" for r in summary.itertuples()]
+    summary["cell"] = interval_text(summary)
     table = summary.pivot(index="model", columns="family", values="cell")[["shape", "random"]]
-    table = table.reindex([m for m in (*MODELS, FLOOR) if m in table.index])
+    table = table.reindex(table_order(table.index))
     counts = summary.groupby("family").agg(seeds=("seeds", "max"), references=("references", "max"))
     differences = read_result(profile, "08_differences.csv").set_index("family")
     protocol = read_result(profile, "08_protocol.csv").set_index("condition")
@@ -306,12 +306,23 @@ def results_page(profile: Profile, tables: dict, run_dir: Path) -> str:
 # ---------------------------------------------------------------------------- the sweeps (notebook 08)
 
 
+def table_order(names) -> list:
+    """The models among ``names`` in Table I order, the floor last."""
+    return [m for m in (*MODELS, FLOOR) if m in set(names)]
+
+
+def interval_text(summary: pd.DataFrame, digits: int = 2) -> pd.Series:
+    """"mean [low, high]" for each row of a summary (columns mean, low, high)."""
+    return pd.Series([f"{m:.{digits}f} [{lo:.{digits}f}, {hi:.{digits}f}]"
+                      for m, lo, hi in zip(summary["mean"], summary["low"], summary["high"])], index=summary.index)
+
+
 def with_ci(rows: pd.DataFrame, value: str, family: str) -> pd.DataFrame:
     """Mean of ``value`` on a reference family per model, with its 95 % bootstrap interval
     over seeds and references; models in Table I order, the floor last."""
     part = rows[(rows["family"] == family) & rows[value].notna()]
     table = stats.summarise(part, value, by=("model",)).set_index("model")
-    return table.reindex([m for m in (*MODELS, FLOOR) if m in table.index])
+    return table.reindex(table_order(table.index))
 
 
 def table1_ci(rows: pd.DataFrame) -> pd.DataFrame:
@@ -320,7 +331,7 @@ def table1_ci(rows: pd.DataFrame) -> pd.DataFrame:
     columns = {}
     for family, label in (("shape", "shape_mm"), ("random", "random_mm")):
         summary = with_ci(rows, "rmse_mm", family)
-        columns[label] = summary.apply(lambda r: f"{r['mean']:.2f} [{r['low']:.2f}, {r['high']:.2f}]", axis=1)
+        columns[label] = interval_text(summary)
         columns[f"{family}_seeds x refs"] = summary.apply(lambda r: f"{r.seeds:.0f} x {r.references:.0f}", axis=1)
     return pd.DataFrame(columns).rename_axis("model")
 
@@ -346,6 +357,6 @@ def protocol_table(rows: pd.DataFrame, family: str = "shape") -> pd.DataFrame:
     (columns, the floor last), with the references' mean coverage by the training states."""
     part = rows[rows["family"] == family]
     table = part.pivot_table(index="condition", columns="model", values="rmse_mm", sort=False)
-    table = table[[m for m in (*MODELS, FLOOR) if m in table.columns]]
+    table = table[table_order(table.columns)]
     table["coverage"] = part.groupby("condition", sort=False)["coverage"].mean()
     return table

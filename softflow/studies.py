@@ -117,10 +117,8 @@ def _table1_run(cell: dict, profile_name: str, device: str, workdir: Path, key: 
     profile, sim = get_profile(profile_name), Simulator(SIM_ROBOT)
     references = table1_references(sim, profile_name)
     if cell["model"] == FLOOR:
-        plans, reached, history = floor.ilc_plans(sim, references, iterations=TABLE1[profile_name]["ilc_iterations"])
-        trials = np.argmin(history, axis=0)
-        return [_unnamed(score(FLOOR, r, u, X), ilc_best_trial=int(t))
-                for r, u, X, t in zip(references, plans, reached, trials)]
+        rows, trials = _floor_rows(sim, references, TABLE1[profile_name]["ilc_iterations"])
+        return [_unnamed(row, ilc_best_trial=int(t)) for row, t in zip(rows, trials)]
     dataset = data.load_dataset(profile, progress=False)
     model, checkpoint = train.ensure_trained(cell["model"], profile, dataset, seed=cell["seed"],
                                              root=workdir / "models" / profile_name, device=device)
@@ -128,6 +126,12 @@ def _table1_run(cell: dict, profile_name: str, device: str, workdir: Path, key: 
     trained = dict(best_val=float(checkpoint["best_val"]), epochs_run=int(checkpoint["epochs_run"]),
                    train_minutes=float(checkpoint["wall_seconds"]) / 60)
     return [_unnamed(row, **trained) for row in results.to_dict("records")]
+
+
+def _floor_rows(sim: Simulator, references, iterations: int, start_q=None):
+    """The ILC floor's scored row for each reference, and the trial that gave it."""
+    plans, reached, history = floor.ilc_plans(sim, references, iterations=iterations, start_q=start_q)
+    return [score(FLOOR, r, u, X) for r, u, X in zip(references, plans, reached)], np.argmin(history, axis=0)
 
 
 def _unnamed(row: dict, **more) -> dict:
@@ -178,9 +182,7 @@ def _protocol_run(cell: dict, profile_name: str, device: str, workdir: Path, key
     dataset = data.load_dataset(profile, progress=False)
     covered = dict(zip((r.name for r in references), coverage(references, dataset)))
     if cell["model"] == FLOOR:
-        plans, reached, _ = floor.ilc_plans(sim, references, iterations=PROTOCOL_GRID[profile_name]["ilc_iterations"],
-                                            start_q=start_q)
-        rows = [score(FLOOR, r, u, X) for r, u, X in zip(references, plans, reached)]
+        rows, _ = _floor_rows(sim, references, PROTOCOL_GRID[profile_name]["ilc_iterations"], start_q)
     else:
         model, _ = train.ensure_trained(cell["model"], profile, dataset, device=device)
         controller = Controller(model, cell["model"])
