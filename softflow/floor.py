@@ -62,18 +62,22 @@ def ilc_plans(sim: Simulator, references, *, iterations: int = ITERATIONS, cutof
 
 
 def learning_filter(sim: Simulator, n_steps: int, cutoff_hz: float = CUTOFF_HZ) -> np.ndarray:
-    """Q(w) / H(w) for plans of up to ``n_steps`` steps, on the rfft grid of 2 n_steps samples
-    (zero padding: no wrap-around). H from a small step of u1 at rest (the tip's y response;
-    the rod is symmetric about its axis), Q a 4th-order Butterworth magnitude."""
+    """Q(w) / H_k(w) per input k, (n_freq, 2), for plans of up to ``n_steps`` steps, on the
+    rfft grid of 2 n_steps samples (zero padding: no wrap-around). H_k from a small step of
+    u_k at rest: the tip's motion along the axis that input moves it most (y for u1, z for
+    u2), unit static gain; in the horizontal configuration gravity makes the two differ.
+    Q a 4th-order Butterworth magnitude."""
     n_fft = 2 * n_steps
-    step = np.zeros((1, n_fft, 2))
-    step[..., 0] = 0.05  # N: small, so the response is linear
-    y = sim.rollout(step)[0, :, 1]
-    impulse = np.diff(y - y[0]) / (y[-1] - y[0])  # unit static gain; the record must have settled
-    H = np.fft.rfft(impulse, n_fft)
+    steps = np.zeros((2, n_fft, 2))
+    steps[[0, 1], :, [0, 1]] = 0.05  # N: small, so the response is linear
+    tip = sim.rollout(steps)[..., :3]
+    moved = tip - tip[:, :1]
+    along = moved[[0, 1], :, np.argmax(np.abs(moved[:, -1]), axis=-1)]
+    impulse = np.diff(along, axis=1) / along[:, -1:]  # unit static gain; the record must have settled
+    H = np.fft.rfft(impulse, n_fft, axis=1).T
     f = np.fft.rfftfreq(n_fft, DT)
     Q = 1 / np.sqrt(1 + (f / cutoff_hz) ** 8)
-    return Q / H
+    return Q[:, None] / H
 
 
 def correction(table, u, error, learning) -> np.ndarray:
@@ -82,4 +86,4 @@ def correction(table, u, error, learning) -> np.ndarray:
     _, J = table.tip(np.clip(u, -table.u_range, table.u_range))
     static = np.einsum("tij,tj->ti", np.linalg.pinv(J), error)
     n_fft = 2 * (len(learning) - 1)
-    return np.fft.irfft(np.fft.rfft(static, n_fft, axis=0) * learning[:, None], n_fft, axis=0)[: len(u)]
+    return np.fft.irfft(np.fft.rfft(static, n_fft, axis=0) * learning, n_fft, axis=0)[: len(u)]

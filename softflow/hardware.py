@@ -112,36 +112,49 @@ def calibrate_sag(robot: Robot, rest_tip, gravity: str = "horizontal") -> Robot:
     return scaled(brentq(lambda x: sag(x) - measured, low, high, xtol=1e-10))
 
 
-def cable_commands(u, sim: Simulator, stiffness: float = CABLE_STIFFNESS, pretension: float = PRETENSION):
+def cable_commands(u, sim: Simulator, stiffness: float = CABLE_STIFFNESS, pretension: float = PRETENSION,
+                   lead: float = 0.0):
     """Planned actuation (B, T, 2) -> motor commands (B, T, C) in m, through the tension-driven
-    model ``sim`` (the rod shape it predicts for the plan)."""
+    model ``sim`` (the rod shape it predicts for the plan). ``lead`` (s): each command leads
+    by that much of its rate of change, undoing a motor lag of that time constant."""
     u, _ = as_real_array(u, "u", (None, None, 2))
-    if not stiffness > 0:
-        raise ValueError(f"stiffness must be positive; got {stiffness!r}")
+    _check_cables(stiffness, lead)
     B, T, _ = u.shape
     q, _ = sim.integrate(u, sim.rest_q(), np.zeros(sim.nq))
     delta = cable_displacements(sim.bend_angles(q.reshape(-1, sim.nq)), sim.robot).reshape(B, T + 1, -1)
     tensions = cable_tensions(u.reshape(-1, 2), sim.robot, pretension).reshape(B, T, -1)
-    return tensions / stiffness - 0.5 * (delta[:, :-1] + delta[:, 1:])
+    commands = tensions / stiffness - 0.5 * (delta[:, :-1] + delta[:, 1:])
+    rest = pretension / stiffness - cable_displacements(sim.bend_angles(sim.rest_q()[None]), sim.robot)
+    return commands + lead / DT * np.diff(commands, axis=1, prepend=np.broadcast_to(rest, (B, 1, commands.shape[2])))
+
+
+def _check_cables(stiffness: float, lead: float):
+    if not stiffness > 0:
+        raise ValueError(f"stiffness must be positive; got {stiffness!r}")
+    if not (np.isfinite(lead) and lead >= 0):
+        raise ValueError(f"lead must be a finite time >= 0 s; got {lead!r}")
 
 
 class StepCommands:
     """Motor commands one control step at a time, for a loop: ``commands(u)`` (2,) -> (C,) in
     m, through the model rod ``sim`` integrated alongside, exactly as ``cable_commands`` turns
-    a whole plan (the cable path change averaged over the step)."""
+    a whole plan (the cable path change averaged over the step, the same ``lead``)."""
 
-    def __init__(self, sim: Simulator, stiffness: float = CABLE_STIFFNESS, pretension: float = PRETENSION):
-        if not stiffness > 0:
-            raise ValueError(f"stiffness must be positive; got {stiffness!r}")
-        self.sim, self.stiffness, self.pretension = sim, stiffness, pretension
+    def __init__(self, sim: Simulator, stiffness: float = CABLE_STIFFNESS, pretension: float = PRETENSION,
+                 lead: float = 0.0):
+        _check_cables(stiffness, lead)
+        self.sim, self.stiffness, self.pretension, self.lead = sim, stiffness, pretension, lead
         self.q, self.qd = sim.rest_q()[None], np.zeros((1, sim.nq))
+        self.last = pretension / stiffness - cable_displacements(sim.bend_angles(self.q), sim.robot)[0]
 
     def __call__(self, u) -> np.ndarray:
         u, _ = as_real_array(np.reshape(u, (1, 1, 2)), "u", (1, 1, 2))
         q, qd = self.sim.integrate(u, self.q, self.qd)
         delta = cable_displacements(self.sim.bend_angles(q[0]), self.sim.robot)  # (2, C): the step's ends
         self.q, self.qd = q[:, -1], qd[:, -1]
-        return cable_tensions(u[0], self.sim.robot, self.pretension)[0] / self.stiffness - 0.5 * (delta[0] + delta[1])
+        command = cable_tensions(u[0], self.sim.robot, self.pretension)[0] / self.stiffness - 0.5 * (delta[0] + delta[1])
+        led, self.last = command + self.lead / DT * (command - self.last), command
+        return led
 
 
 class CablePlant:
@@ -240,16 +253,17 @@ class TwinRig:
     (``StepCommands``) and advances the plant across ``gap`` by DT; ``measure()`` returns the camera frames
     that have arrived by then: taken at the camera's frame rate (at the first control sample
     at or after each frame time), rendered and tracked, each ``latency`` s late, a share
-    ``dropped`` of them lost (no marker)."""
+    ``dropped`` of them lost (no marker). With a ``calibration``, u becomes motor commands
+    through the identified rod (``Calibration.step_commands``)."""
 
     def __init__(self, sim: Simulator, gap: RealityGap = NO_GAP, *, latency: float = 0.0, dropped: float = 0.0,
-                 seed: int = 0):
+                 seed: int = 0, calibration=None):
         if not (np.isfinite(latency) and latency >= 0 and 0 <= dropped < 1):
             raise ValueError(f"need latency >= 0 s and 0 <= dropped < 1; got {latency!r}, {dropped!r}")
         self.sim, self.latency, self.dropped = sim, latency, dropped
         self.plant, self.camera = CablePlant(sim.robot, sim.gravity, gap), twin_camera(sim, gap)
         self.plant.reset(1)
-        self.to_motors = StepCommands(sim)
+        self.to_motors = StepCommands(sim) if calibration is None else calibration.step_commands()
         self.rng = np.random.default_rng(seed)
         self.steps, self.next_frame, self.pending = 0, 0, []
         self.states, self.q = [self.plant.tip_state()[0]], [self.plant.q[0]]
@@ -291,22 +305,26 @@ LOOPS = ("open", "closed")
 
 def run_twin(controller, references, sim: Simulator, gap: RealityGap, *, loop: str = "open", correction=None,
              condition: str = "reference", repetitions: int = 1, camera_latency: float = 0.0, dropped: float = 0.0,
-             command_dir=None, u_limit: float = U_MAX, seed: int = 0):
+             calibration=None, command_dir=None, u_limit: float = U_MAX, seed: int = 0):
     """The hardware experiment on the twin, for every reference: ``loop="open"`` plans it with
     ``controller`` (trained on the model ``sim``), turns the plan into motor commands through
     ``sim``, replays them on the plant across ``gap`` (all references in one batch) and films
     the run; ``loop="closed"`` runs ``loop.run_loop`` against a ``TwinRig`` (the camera in the
     loop, ``camera_latency`` s late, a share ``dropped`` of frames lost; ``correction`` and
     ``condition`` as in ``run_loop``, its default gains if None; ``repetitions`` > 1 learns a
-    feedforward across that many runs, ``loop.learn_by_repetition``, and scores the last).
+    feedforward across that many runs, ``loop.learn_by_repetition``, and scores the run the
+    camera saw track best, the feedforward a user would keep, as the ILC floor keeps its best).
+    ``calibration`` (``calibration.Calibration``, e.g. from an identification run): plans
+    are mapped to the identified rod and made into motor commands through it, in both loops.
     Commands go to ``command_dir`` as CSV if given.
     Returns a DataFrame (one row per reference: RMSE through the camera and of the true tip,
     clipped commands and watchdog events) and {name: dict(u, commands, states, q, frame_times,
     tracked)}."""
     check_choice(loop, "loop", LOOPS)
-    runs = _open_runs(controller, references, sim, gap, u_limit, seed) if loop == "open" else {
+    runs = _open_runs(controller, references, sim, gap, u_limit, seed, calibration) if loop == "open" else {
         r.name: _closed_run(controller, r, sim, gap,
-                            dict(correction=correction or PI(), condition=condition, u_limit=u_limit),
+                            dict(correction=correction or PI(), condition=condition, u_limit=u_limit,
+                                 calibration=calibration),
                             repetitions, camera_latency, dropped, seed + k)
         for k, r in enumerate(references)}
     rows = []
@@ -319,13 +337,17 @@ def run_twin(controller, references, sim: Simulator, gap: RealityGap, *, loop: s
                          rmse_true_mm=1e3 * tracking_rmse(run["states"], r.states, r.mask),
                          peak_speed=peak_speed(run["states"], r.mask),
                          lost_frames=int(np.isnan(run["tracked"]).any(1).sum()), clipped=run["clipped"],
-                         watchdog_events=run["watchdog_events"]))
+                         watchdog_events=run["watchdog_events"], repetition=run.get("repetition", 1)))
     return pd.DataFrame(rows), runs
 
 
-def _open_runs(controller, references, sim, gap, u_limit, seed) -> dict:
+def _open_runs(controller, references, sim, gap, u_limit, seed, calibration) -> dict:
     plans, padded = plan_all(controller, references, u_limit)
-    commands = cable_commands(padded, sim)
+    if calibration is None:
+        commands = cable_commands(padded, sim)
+    else:
+        padded = np.clip(calibration.actuation(padded), -u_limit, u_limit)
+        plans, commands = [padded[k, : len(u)] for k, u in enumerate(plans)], calibration.commands(padded)
     plant = CablePlant(sim.robot, sim.gravity, gap)
     replayed = plant.replay(commands)
     camera = twin_camera(sim, gap)
@@ -341,12 +363,14 @@ def _open_runs(controller, references, sim, gap, u_limit, seed) -> dict:
 
 def _closed_run(controller, reference, sim, gap, loop_options, repetitions, latency, dropped, seed) -> dict:
     def make_rig():
-        return TwinRig(sim, gap, latency=latency, dropped=dropped, seed=seed)
+        return TwinRig(sim, gap, latency=latency, dropped=dropped, seed=seed, calibration=loop_options["calibration"])
 
-    result, rig = learn_by_repetition(controller, reference, make_rig, repetitions=repetitions, **loop_options)[-1]
+    runs = learn_by_repetition(controller, reference, make_rig, repetitions=repetitions, **loop_options)
+    kept = int(np.argmin([tracked_rmse(rig.frame_times, rig.tracked, reference) for _, rig in runs]))
+    result, rig = runs[kept]
     return dict(u=result.u, commands=np.array(rig.commands), states=np.array(rig.states), q=np.array(rig.q),
                 frame_times=np.array(rig.frame_times), tracked=np.array(rig.tracked), clipped=result.clipped,
-                watchdog_events=result.watchdog_events, estimates=result.estimates)
+                watchdog_events=result.watchdog_events, estimates=result.estimates, repetition=kept + 1)
 
 
 def write_commands(path, commands, dt: float = DT):

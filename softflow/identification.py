@@ -16,7 +16,7 @@ from scipy.optimize import least_squares
 
 from .checks import as_real_array
 from .data import DT, sum_of_sines_excitation
-from .hardware import CablePlant, RealityGap, cable_commands
+from .hardware import CablePlant, RealityGap, cable_commands, observe_run, twin_camera
 from .sim import Simulator
 
 EXCITATION_SECONDS = 3.0
@@ -61,3 +61,12 @@ def identify(sim: Simulator, commands, frame_times, tracked) -> Identified:
     fit = least_squares(residual, x0=[0.0, 0.0, 0.0, 0.01], bounds=([-1.5, -1.5, -1.5, 0.0], [1.5, 1.5, 1.5, 0.2]),
                         diff_step=1e-3, x_scale=[0.1, 0.1, 0.1, 0.01])
     return Identified(gap_of(fit.x), float(np.sqrt(np.mean(fit.fun**2) * 3)), int(fit.nfev))
+
+
+def identify_twin(sim: Simulator, gap: RealityGap, seconds: float = EXCITATION_SECONDS, seed: int = 0) -> Identified:
+    """The identification run on the hardware twin: ``excitation_commands`` replayed on the
+    plant across ``gap``, filmed by its camera, fitted (as a real rig would be)."""
+    commands = excitation_commands(sim, seconds, seed)
+    plant = CablePlant(sim.robot, sim.gravity, gap)
+    times, tracked = observe_run(plant.sim, plant.replay(commands[None])["q"][0], twin_camera(sim, gap), seed)
+    return identify(sim, commands, times, tracked)

@@ -70,13 +70,16 @@ CONDITIONS = ("reference", "estimate")
 
 def run_loop(controller, reference, measure, command, *, correction: PI = PI(), condition: str = "reference",
              feedforward=None, watchdog_frames: int = WATCHDOG_FRAMES, u_limit: float = U_MAX,
-             estimator_options: dict | None = None) -> LoopRun:
+             estimator_options: dict | None = None, calibration=None) -> LoopRun:
     """Track ``reference`` (a ``trajectories.Reference`` that starts at the rod's rest) in
     closed loop; see the module docstring. ``feedforward`` (T, 2) is added to every command
     (e.g. learned across repetitions). ``condition``: the inverse model's u for (x*_t, x*_t+1),
     the plan, so that feedback comes from the correction alone ("reference"), or for
     (estimated x_t, x*_t+1) ("estimate"). A reference outside the model's workspace is refused
-    before the first command. ``estimator_options`` go to ``estimation.TipEstimator``."""
+    before the first command. ``estimator_options`` go to ``estimation.TipEstimator``.
+    ``calibration`` (a ``calibration.Calibration``): the model's u is mapped to the identified
+    rod, and the correction acts through that rod's statics; the rig's ``command`` should
+    then be made through it too (``Calibration.step_commands``)."""
     check_choice(condition, "condition", CONDITIONS)
     X = reference.states
     controller.check_workspace(X)
@@ -88,7 +91,7 @@ def run_loop(controller, reference, measure, command, *, correction: PI = PI(), 
     extra = np.zeros((T, 2)) if feedforward is None else np.asarray(feedforward, float)
     if extra.shape != (T, 2):
         raise ValueError(f"feedforward must have shape ({T}, 2); got {extra.shape}")
-    table = Simulator(controller.robot, controller.gravity).static_table()
+    table = _rod(controller, calibration).static_table()
     estimator = TipEstimator(X[0, :3], **(estimator_options or {}))
     run = LoopRun(np.zeros((T, 2)), np.zeros((T, 6)))
     integral, u_prev, safe = np.zeros(3), np.zeros(2), np.zeros(2)
@@ -110,7 +113,10 @@ def run_loop(controller, reference, measure, command, *, correction: PI = PI(), 
         else:
             holding = False
             error = X[t, :3] - x_hat[:3]
-            wanted = controller.step(x_hat if condition == "estimate" else X[t], X[t + 1], clip=False) + extra[t]
+            wanted = controller.step(x_hat if condition == "estimate" else X[t], X[t + 1], clip=False)
+            if calibration is not None:
+                wanted = calibration.actuation(wanted[None], t)[0]
+            wanted = wanted + extra[t]
             if correction != NO_CORRECTION:
                 _, J = table.tip(np.clip(u_prev, -table.u_range, table.u_range)[None])
                 wanted = wanted + np.linalg.pinv(J[0]) @ (correction.kp * error + correction.ki * integral)
@@ -122,6 +128,11 @@ def run_loop(controller, reference, measure, command, *, correction: PI = PI(), 
         command(u)
         run.u[t], u_prev = u, u
     return run
+
+
+def _rod(controller, calibration) -> Simulator:
+    """The rod a loop corrects through: the identified one if calibrated, else the model's."""
+    return Simulator(controller.robot, controller.gravity) if calibration is None else calibration.rod
 
 
 def _frames(measure):
@@ -138,11 +149,12 @@ def learn_by_repetition(controller, reference, make_rig, *, repetitions: int = 5
     """Run ``reference`` ``repetitions`` times, each from rest on a fresh ``make_rig()`` (an
     object with ``measure`` and ``command``), each with a feedforward learned from the previous
     runs' camera-measured tip error: iterative learning control across repetitions, with the
-    ILC floor's learning law through the *model* rod (``floor.correction``). The loop's own
+    ILC floor's learning law through the model rod, or the identified one when
+    ``calibration`` is among the loop options (``floor.correction``). The loop's own
     correction still acts within each run. Returns [(LoopRun, rig)] per repetition."""
     if not (isinstance(repetitions, int) and repetitions >= 1 and 0 < gain <= 1):
         raise ValueError(f"need an integer repetitions >= 1 and 0 < gain <= 1; got {repetitions!r}, {gain!r}")
-    sim = Simulator(controller.robot, controller.gravity)
+    sim = _rod(controller, loop_options.get("calibration"))
     learning = floor.learning_filter(sim, reference.n_steps) if repetitions > 1 else None  # a rollout: only if used
     feedforward, runs = np.zeros((reference.n_steps, 2)), []
     for _ in range(repetitions):

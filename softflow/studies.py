@@ -12,7 +12,9 @@ data_size: issue 15's first question, fixed before any ran: is it the prior or b
     Table I's references and per step on the held-out test episodes.
 closed_loop: Table III extended: the twin's RF-FWD open loop and in closed loop (``loop``):
     integral correction, the model conditioned on the estimate instead of the reference,
-    learning across repetitions; camera latency 0 / 33 / 66 ms and 10 % lost frames.
+    learning across repetitions, each also calibrated on an identification run
+    (``calibration``); camera latency 0 / 33 / 66 ms and 10 % lost frames; open / calibrated
+    open / closed / calibrated closed under each doubled gap term.
 """
 from __future__ import annotations
 
@@ -24,7 +26,8 @@ from typing import Callable
 import numpy as np
 import torch
 
-from . import data, floor, hardware, train
+from . import data, floor, hardware, identification, train
+from .calibration import Calibration
 from .control import Controller, SaturationWarning, evaluate, score
 from .profiles import Profile, TrainConfig, get_profile
 from .protocol import Protocol, apply, coverage, shapes_at
@@ -229,12 +232,16 @@ def _size_run(cell: dict, profile_name: str, device: str, workdir: Path, key: st
 # ---------------------------------------------------------------------------- closed loop
 LOOP_MODES = {  # mode -> hardware.run_twin options (repetitions: the profile's)
     "open": dict(loop="open"),
+    "open-calibrated": dict(loop="open", calibrated=True),
     "closed": dict(loop="closed"),
+    "closed-calibrated": dict(loop="closed", calibrated=True),
     "closed-estimate": dict(loop="closed", condition="estimate"),
     "closed-ilc": dict(loop="closed", repetitions=None),
+    "closed-ilc-calibrated": dict(loop="closed", repetitions=None, calibrated=True),
 }
+GAP_MODES = ("open", "open-calibrated", "closed", "closed-calibrated")  # under each doubled gap term
 LOOP_GRID = {
-    "ci": dict(configs=("vertical",), modes=("open", "closed", "closed-ilc"), references=1, repetitions=2,
+    "ci": dict(configs=("vertical",), modes=("open", "closed", "closed-ilc-calibrated"), references=1, repetitions=2,
                latencies=(), dropped=False, gaps=()),
     "paper": dict(configs=("vertical", "horizontal"), modes=tuple(LOOP_MODES), references=5, repetitions=5,
                   latencies=(0.0, 0.066), dropped=True, gaps=hardware.GAP_TERMS),
@@ -250,7 +257,7 @@ def _loop_cells(profile_name: str) -> list[dict]:
               for g in grid["configs"] for latency in grid["latencies"]]
     cells += [dict(cell, gravity=g, mode="closed", dropped=0.1) for g in grid["configs"] if grid["dropped"]]
     return cells + [dict(cell, gravity=g, mode=mode, gap=f"2x {term}") for term in grid["gaps"]
-                    for g in grid["configs"] for mode in ("open", "closed")]
+                    for g in grid["configs"] for mode in GAP_MODES]
 
 
 def _gap(name: str) -> hardware.RealityGap:
@@ -265,13 +272,21 @@ def _loop_run(cell: dict, profile_name: str, device: str, workdir: Path, key: st
     sim = Simulator(HW_ROBOT, gravity)
     dataset = data.load_dataset(profile, HW_ROBOT, gravity, progress=False)
     model, _ = train.ensure_trained(cell["model"], profile, dataset, HW_ROBOT, gravity, device=device)
-    options = dict(LOOP_MODES[cell["mode"]])
+    options, gap = dict(LOOP_MODES[cell["mode"]]), _gap(cell["gap"])
     if "repetitions" in options:
         options["repetitions"] = grid["repetitions"]
+    identified = {}
+    if options.pop("calibrated", False):  # an identification run on this rig first, as on a real one
+        fit = identification.identify_twin(sim, gap, seconds=profile.identification_seconds)
+        options["calibration"] = Calibration.identified(sim, fit)
+        identified = {f"identified_{term}": getattr(fit.gap, term) for term in IDENTIFIED}
     references = hardware_references(sim)[: grid["references"]]
     rows, _ = hardware.run_twin(Controller(model, cell["model"], robot=HW_ROBOT, gravity=gravity), references, sim,
-                                _gap(cell["gap"]), camera_latency=cell["latency"], dropped=cell["dropped"], **options)
-    return rows.drop(columns=["gravity", "loop"]).to_dict("records")
+                                gap, camera_latency=cell["latency"], dropped=cell["dropped"], **options)
+    return [dict(row, **identified) for row in rows.drop(columns=["gravity", "loop"]).to_dict("records")]
+
+
+IDENTIFIED = ("youngs_modulus", "damping", "density", "motor_lag")
 
 
 STUDIES = {
@@ -279,5 +294,5 @@ STUDIES = {
     "table1": Study(_table1_cells, _table1_run),
     "protocol": Study(_protocol_cells, _protocol_run),
     "data_size": Study(_size_cells, _size_run),
-    "closed_loop": Study(_loop_cells, _loop_run),
+    "closed_loop": Study(_loop_cells, _loop_run, version=2),
 }
