@@ -68,6 +68,7 @@ bench: $(STAMP) $(ELASTICA)  # PyElastica is a benchmark-only dependency, in its
 	$(PY) benchmarks/bench_simulator.py
 	$(PY) benchmarks/bench_planning.py --profile $(BENCH_PROFILE)
 	$(PY) benchmarks/bench_training.py --profile $(BENCH_PROFILE)
+	$(PY) benchmarks/bench_sweep.py
 
 lab: $(STAMP)
 	$(VENV)/bin/jupyter lab notebooks
