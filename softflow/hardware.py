@@ -124,8 +124,13 @@ def cable_commands(u, sim: Simulator, stiffness: float = CABLE_STIFFNESS, preten
     delta = cable_displacements(sim.bend_angles(q.reshape(-1, sim.nq)), sim.robot).reshape(B, T + 1, -1)
     tensions = cable_tensions(u.reshape(-1, 2), sim.robot, pretension).reshape(B, T, -1)
     commands = tensions / stiffness - 0.5 * (delta[:, :-1] + delta[:, 1:])
-    rest = pretension / stiffness - cable_displacements(sim.bend_angles(sim.rest_q()[None]), sim.robot)
-    return commands + lead / DT * np.diff(commands, axis=1, prepend=np.broadcast_to(rest, (B, 1, commands.shape[2])))
+    rest = np.broadcast_to(rest_command(sim, stiffness, pretension), (B, 1, commands.shape[2]))
+    return commands + lead / DT * np.diff(commands, axis=1, prepend=rest)
+
+
+def rest_command(sim: Simulator, stiffness: float = CABLE_STIFFNESS, pretension: float = PRETENSION) -> np.ndarray:
+    """The motor commands (C,) in m that hold ``sim``'s rod at rest with every cable at its pretension."""
+    return pretension / stiffness - cable_displacements(sim.bend_angles(sim.rest_q()[None]), sim.robot)[0]
 
 
 def _check_cables(stiffness: float, lead: float):
@@ -145,7 +150,7 @@ class StepCommands:
         _check_cables(stiffness, lead)
         self.sim, self.stiffness, self.pretension, self.lead = sim, stiffness, pretension, lead
         self.q, self.qd = sim.rest_q()[None], np.zeros((1, sim.nq))
-        self.last = pretension / stiffness - cable_displacements(sim.bend_angles(self.q), sim.robot)[0]
+        self.last = rest_command(sim, stiffness, pretension)
 
     def __call__(self, u) -> np.ndarray:
         u, _ = as_real_array(np.reshape(u, (1, 1, 2)), "u", (1, 1, 2))
