@@ -314,3 +314,35 @@ def against_speed(summary, coverage, labels: dict):
     twin.grid(False)
     ax.legend(fontsize=7, ncol=2)
     return fig
+
+
+def latency_curve(closed, open_loop):
+    """Closed-loop RMSE (mean over the shapes, mm) against camera latency, one line per
+    configuration (``closed``: indexed by latency in s, columns configurations), with the
+    open loop (dashed, ``open_loop``: configuration -> mm) for comparison."""
+    fig, ax = plt.subplots(figsize=(5.2, 3.6))
+    for config in closed.columns:
+        line, = ax.plot(closed.index * MM, closed[config], "o-", label=f"closed, {config}")
+        ax.axhline(open_loop[config], color=line.get_color(), ls="--", lw=1, label=f"open, {config}")
+    ax.set(xlabel="camera latency [ms]", ylabel="RMSE, mean of the shapes [mm]", ylim=(0, None))
+    ax.legend(fontsize=7)
+    return fig
+
+
+def identified_terms(identified):
+    """Identified reality-gap terms against the truth (``identified``: rows E, eta, rho
+    (relative) and motor_lag (s); columns the truth and each configuration's fit)."""
+    relative, lag = identified.drop(index="motor_lag"), identified.loc["motor_lag"]
+    fig, (ax, ax_lag) = plt.subplots(1, 2, figsize=(7.5, 3.2), gridspec_kw=dict(width_ratios=(3, 1)))
+    width = 0.8 / len(identified.columns)
+    for k, column in enumerate(identified.columns):
+        style = dict(color="k" if column == "truth" else f"C{k}", label=column, width=width)
+        ax.bar(np.arange(len(relative)) + k * width, 100 * relative[column], **style)
+        ax_lag.bar(k * width, MM * lag[column], **style)
+    ax.set(xticks=np.arange(len(relative)) + width * (len(identified.columns) - 1) / 2,
+           xticklabels=relative.index, ylabel="error against the model rod [%]")
+    ax.axhline(0, color="k", lw=0.8)
+    ax_lag.set(xticks=[], xlabel="motor lag", ylabel="[ms]")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    return fig

@@ -208,6 +208,8 @@ class Simulator:
         releases the GIL) and concatenate the results along the batch axis."""
         size = min(self.chunk_size, -(-B // self.threads))  # every thread gets work
         chunks = [slice(i, min(i + size, B)) for i in range(0, B, size)]
+        if len(chunks) == 1 and not progress:  # a closed loop's step: a pool's thread costs more than the work
+            return list(work(chunks[0]))
         with ThreadPoolExecutor(self.threads) as pool, tqdm(total=B, disable=not progress, desc="simulating",
                                                                unit="episode") as bar:
             results = []

@@ -15,18 +15,20 @@ closed_loop: Table III extended: the twin's RF-FWD open loop and in closed loop 
     learning across repetitions, each also calibrated on an identification run
     (``calibration``); camera latency 0 / 33 / 66 ms and 10 % lost frames; open / calibrated
     open / closed / calibrated closed under each doubled gap term.
+twin_burst: where the twin's loops break: the burst circle continued to a 0.2 s period, open
+    loop, closed loop and learning across repetitions, scored per revolution.
 """
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 import torch
 
-from . import data, floor, hardware, identification, train
+from . import data, floor, hardware, identification, stress, train
 from .calibration import Calibration
 from .control import Controller, SaturationWarning, evaluate, score
 from .profiles import Profile, TrainConfig, get_profile
@@ -34,7 +36,9 @@ from .protocol import Protocol, apply, coverage, shapes_at
 from .report import FLOOR
 from .robots import HW_ROBOT, SIM_ROBOT
 from .sim import Simulator
-from .trajectories import STRUCTURED, cached_references, evaluation_references, hardware_references, random_references
+from .store import cache_file, read_npz, write_npz
+from .trajectories import (STRUCTURED, cached_references, evaluation_references, hardware_burst_reference,
+                           hardware_references, random_references)
 
 
 @dataclass(frozen=True)
@@ -265,28 +269,78 @@ def _gap(name: str) -> hardware.RealityGap:
     return hardware.TYPICAL_GAP if name == "typical" else hardware.TYPICAL_GAP.doubled(name.removeprefix("2x "))
 
 
-def _loop_run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> list[dict]:
-    """The twin model of one configuration on Table III's references under the cell's gap, in
-    one loop mode; one row per reference."""
-    profile, grid, gravity = get_profile(profile_name), LOOP_GRID[profile_name], cell["gravity"]
+def _twin_setup(cell: dict, profile_name: str, device: str, workdir: Path):
+    """The twin model of the cell's configuration, its simulator, the gap, the run_twin options
+    of the cell's loop mode, and the identified terms (empty unless calibrated)."""
+    profile, gravity = get_profile(profile_name), cell["gravity"]
     sim = Simulator(HW_ROBOT, gravity)
     dataset = data.load_dataset(profile, HW_ROBOT, gravity, progress=False)
     model, _ = train.ensure_trained(cell["model"], profile, dataset, HW_ROBOT, gravity, device=device)
     options, gap = dict(LOOP_MODES[cell["mode"]]), _gap(cell["gap"])
     if "repetitions" in options:
-        options["repetitions"] = grid["repetitions"]
+        options["repetitions"] = LOOP_GRID[profile_name]["repetitions"]
     identified = {}
     if options.pop("calibrated", False):  # an identification run on this rig first, as on a real one
-        fit = identification.identify_twin(sim, gap, seconds=profile.identification_seconds)
+        fit = _identified_twin(sim, gap, profile.identification_seconds, workdir)
         options["calibration"] = Calibration.identified(sim, fit)
         identified = {f"identified_{term}": getattr(fit.gap, term) for term in IDENTIFIED}
-    references = hardware_references(sim)[: grid["references"]]
-    rows, _ = hardware.run_twin(Controller(model, cell["model"], robot=HW_ROBOT, gravity=gravity), references, sim,
-                                gap, camera_latency=cell["latency"], dropped=cell["dropped"], **options)
+    controller = Controller(model, cell["model"], robot=HW_ROBOT, gravity=gravity)
+    return controller, sim, gap, dict(options, camera_latency=cell["latency"], dropped=cell["dropped"]), identified
+
+
+def _loop_run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> list[dict]:
+    """The twin model of one configuration on Table III's references under the cell's gap, in
+    one loop mode; one row per reference."""
+    controller, sim, gap, options, identified = _twin_setup(cell, profile_name, device, workdir)
+    references = hardware_references(sim)[: LOOP_GRID[profile_name]["references"]]
+    rows, _ = hardware.run_twin(controller, references, sim, gap, **options)
     return [dict(row, **identified) for row in rows.drop(columns=["gravity", "loop"]).to_dict("records")]
 
 
 IDENTIFIED = ("youngs_modulus", "damping", "density", "motor_lag")
+
+
+def _identified_twin(sim: Simulator, gap: hardware.RealityGap, seconds: float, workdir: Path):
+    """``identification.identify_twin``, cached in the sweep's workdir: the calibrated cells of
+    one configuration and gap share the same identification run (deterministic, ~2 min)."""
+    path = cache_file(workdir, "identified", dict(simulator=sim.spec(), gap=asdict(gap), seconds=seconds))
+    if (cached := read_npz(path)) is None:
+        fit = identification.identify_twin(sim, gap, seconds=seconds)
+        write_npz(path, **{term: getattr(fit.gap, term) for term in IDENTIFIED}, rmse_mm=fit.rmse_mm,
+                  evaluations=fit.evaluations)
+        return fit
+    return identification.Identified(hardware.RealityGap(**{term: float(cached[term]) for term in IDENTIFIED}),
+                                     float(cached["rmse_mm"]), int(cached["evaluations"]))
+
+
+# ---------------------------------------------------------------------------- twin burst
+# Fixed before any ran: the burst circle continued to a 0.2 s period (paper profile; the ci
+# profile a short, steep one) under TYPICAL_GAP with 33 ms latency, in the open loop, the
+# integral-corrected closed loop and learning across repetitions; broken as in notebook 05.
+BURST_GRID = {
+    "ci": dict(modes=("open", "closed"), periods=(2.0, 0.3), duration=4.0),
+    "paper": dict(modes=("open", "closed", "closed-ilc"), periods=(5.0, 0.2), duration=12.0 * 4.8 / 3.8),
+}
+
+
+def _burst_cells(profile_name: str) -> list[dict]:
+    cell = dict(study="twin_burst", model="rf-fwd", seed=0, latency=CAMERA_LATENCY, dropped=0.0, gap="typical")
+    return [dict(cell, gravity=g, mode=mode) for g in LOOP_GRID[profile_name]["configs"]
+            for mode in BURST_GRID[profile_name]["modes"]]
+
+
+def _burst_run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> list[dict]:
+    """One loop mode on the twin's speeding-up burst circle; one row per complete revolution
+    (its period, reference speed and y-z RMSE of the true tip, as notebook 05 scores the burst)."""
+    controller, sim, gap, options, _ = _twin_setup(cell, profile_name, device, workdir)
+    grid = BURST_GRID[profile_name]
+    reference = hardware_burst_reference(sim, grid["periods"], grid["duration"])
+    rows, runs = hardware.run_twin(controller, [reference], sim, gap, **options)
+    centre = sim.tip_positions(sim.rest_q()[None])[0, 1:]
+    breakdown = stress.burst_breakdown(reference, {cell["mode"]: runs[reference.name]}, sim.robot.length, centre)
+    counts = rows.iloc[0][["rmse_mm", "clipped", "watchdog_events", "repetition"]].to_dict()
+    return [dict(row, reference=reference.name, **{f"whole_{k}": v for k, v in counts.items()})
+            for row in breakdown.drop(columns="model").to_dict("records")]
 
 
 STUDIES = {
@@ -295,4 +349,5 @@ STUDIES = {
     "protocol": Study(_protocol_cells, _protocol_run),
     "data_size": Study(_size_cells, _size_run),
     "closed_loop": Study(_loop_cells, _loop_run, version=2),
+    "twin_burst": Study(_burst_cells, _burst_run),
 }

@@ -246,6 +246,14 @@ def _hardware_set(sim: Simulator) -> list[Reference]:
     return shapes + [burst_circle_reference(sim, radius=HARDWARE_BURST_RADIUS, centre=centre)]
 
 
+def hardware_burst_reference(sim: Simulator, periods=(5.0, 0.2), duration: float = 12.0 * 4.8 / 3.8) -> Reference:
+    """Table III's burst circle continued at the paper's slope until tracking must break (period
+    5.0 -> 0.2 s), about the hardware rod's rest tip: where the twin's loops break."""
+    centre = sim.tip_positions(sim.rest_q()[None])[0, 1:]
+    return burst_circle_reference(sim, radius=HARDWARE_BURST_RADIUS, periods=periods, duration=duration,
+                                  centre=centre, name=f"burst_to_{periods[1]:g}s")
+
+
 def hardware_references(sim: Simulator) -> list[Reference]:
     """Table III's shapes and the burst circle, sized for the hardware rod and centred on its
     rest tip (which sags in the horizontal configuration), cached."""

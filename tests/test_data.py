@@ -4,7 +4,7 @@ import pytest
 
 from softflow import data, trajectories
 from softflow.profiles import Profile
-from softflow.robots import SIM_ROBOT
+from softflow.robots import HW_ROBOT, SIM_ROBOT
 from softflow.sim import Simulator
 
 TINY = Profile("tiny", n_episodes=6, episode_seconds=0.3)
@@ -147,3 +147,14 @@ def test_a_subset_trains_on_fewer_episodes_and_is_judged_on_the_same_ones(datase
     assert small.key != dataset.key and small.states is dataset.states
     with pytest.raises(ValueError, match="n_episodes"):
         data.subset(dataset, 1000)
+
+
+def test_hardware_burst_speeds_up_to_a_0_2_s_period_about_the_rest_tip():
+    hw = Simulator(HW_ROBOT)
+    reference = trajectories.hardware_burst_reference(hw)
+    path = reference.states[reference.mask]
+    rest_tip = hw.tip_positions(hw.rest_q()[None])[0, 1:]
+    radius = np.linalg.norm(path[:, 1:3] - rest_tip, axis=1)
+    np.testing.assert_allclose(radius, trajectories.HARDWARE_BURST_RADIUS, rtol=1e-9)
+    angular_rate = np.linalg.norm(path[:, 4:], axis=1) / trajectories.HARDWARE_BURST_RADIUS
+    np.testing.assert_allclose(2 * np.pi / angular_rate[[0, -1]], [5.0, 0.2], rtol=5e-3)  # to the sample

@@ -31,3 +31,17 @@ def test_identify_refuses_a_recording_without_enough_frames():
         identification.identify(sim, commands, np.arange(5) / 30, np.zeros((5, 3)))
     with pytest.raises(ValueError, match="tracked must have shape"):
         identification.identify(sim, commands, np.arange(20) / 30, np.zeros((19, 3)))
+
+
+def test_a_study_identifies_each_rig_once_and_reads_the_same_fit_back(tmp_path, monkeypatch):
+    from softflow import studies
+
+    fit = identification.Identified(hardware.RealityGap(youngs_modulus=-0.12, damping=0.3, density=0.07,
+                                                        motor_lag=0.018), rmse_mm=1.1, evaluations=9)
+    calls = []
+    monkeypatch.setattr(identification, "identify_twin", lambda *args, **kw: calls.append(args) or fit)
+    sim = Simulator(HW_ROBOT, "vertical")
+    first = studies._identified_twin(sim, hardware.TYPICAL_GAP, 3.0, tmp_path)
+    again = studies._identified_twin(sim, hardware.TYPICAL_GAP, 3.0, tmp_path)
+    other_gap = studies._identified_twin(sim, hardware.TYPICAL_GAP.doubled("slack"), 3.0, tmp_path)
+    assert first == again == other_gap == fit and len(calls) == 2  # one run per gap, read back exactly
