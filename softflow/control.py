@@ -38,11 +38,18 @@ class Controller:
     ``noise="seeded"`` draws one z per trajectory from ``seed`` and uses it at every step,
     ``noise="fresh"`` draws a new z for every step; ``sample`` gives independent draws.
     ``robot`` and ``gravity``: the rod the model was trained for (RF-Physical's prior is
-    its statics, tabulated once per controller)."""
+    its statics, tabulated once per controller). ``u_limit``: the actuator range (N) plans
+    are clipped to. ``observe``: what the model was shown of a tip path, applied to every
+    reference ``plan`` and ``sample`` get (e.g. ``variants.Variant.observe``: velocities
+    hidden, or by finite differences, which need the path); None: the full state. ``step``
+    takes its two states as the model sees them."""
 
     def __init__(self, model: torch.nn.Module, name: str, seed: int = 0, *, robot: Robot = SIM_ROBOT,
-                 gravity: str = "vertical"):
+                 gravity: str = "vertical", u_limit: float = U_MAX, observe=None):
+        if not u_limit > 0:
+            raise ValueError(f"u_limit must be a positive actuator range in N; got {u_limit!r}")
         self.model, self.name, self.seed, self.robot, self.gravity = model.eval(), name, seed, robot, gravity
+        self.u_limit, self.observe = float(u_limit), observe
         self.generative = isinstance(model, RectifiedFlow)
         self.statics = Simulator(robot, gravity).static_table() if model.needs_statics else None
         self.lean = LeanFlow(model) if self.generative else LeanMLP(model) if isinstance(model, InverseMLP) else None
@@ -65,10 +72,11 @@ class Controller:
              else self.lean.predict(window, prior))
         u = u.astype(np.float64)
         if clip:
-            if np.abs(u).max() > U_MAX:
-                warnings.warn(f"{self.name}: {int(np.sum(np.abs(u) > U_MAX))} of {u.size} stepped u values exceed "
-                              f"the actuator range +-{U_MAX} N and were clipped", SaturationWarning, stacklevel=2)
-            u = np.clip(u, -U_MAX, U_MAX)
+            if np.abs(u).max() > self.u_limit:
+                warnings.warn(f"{self.name}: {int(np.sum(np.abs(u) > self.u_limit))} of {u.size} stepped u values "
+                              f"exceed the actuator range +-{self.u_limit:g} N and were clipped", SaturationWarning,
+                              stacklevel=2)
+            u = np.clip(u, -self.u_limit, self.u_limit)
         return u[0] if unbatched else u
 
     def plan(self, reference, *, noise: str = "zero", seed: int | None = None, n_samples: int = 1,
@@ -79,7 +87,7 @@ class Controller:
         estimate of E[u | x_t, x_t+1], the plan of least squared actuation error.
 
         Options: ``steps`` (Euler steps of a flow, >= 1). u beyond the actuator range
-        [-U_MAX, U_MAX] is clipped, with a ``SaturationWarning`` that counts the samples."""
+        ``u_limit`` is clipped, with a ``SaturationWarning`` that counts the samples."""
         check_choice(noise, "noise", NOISE)
         if not (isinstance(n_samples, int) and n_samples >= 1):
             raise ValueError(f"n_samples must be a positive integer; got {n_samples!r}")
@@ -89,11 +97,11 @@ class Controller:
             raise ValueError("n_samples > 1 averages random draws: use noise='seeded' or 'fresh'")
         else:
             u = self.sample(reference, n_samples, noise=noise, seed=seed, **options).mean(0)
-        clipped = int(np.sum(np.abs(u) > U_MAX))
+        clipped = int(np.sum(np.abs(u) > self.u_limit))
         if clipped:
             warnings.warn(f"{self.name}: {clipped} of {u.size} planned u values exceed the actuator range "
-                          f"+-{U_MAX} N and were clipped", SaturationWarning, stacklevel=2)
-        return np.clip(u, -U_MAX, U_MAX)
+                          f"+-{self.u_limit:g} N and were clipped", SaturationWarning, stacklevel=2)
+        return np.clip(u, -self.u_limit, self.u_limit)
 
     def sample(self, reference, n: int, *, noise: str = "seeded", seed: int | None = None, **options) -> np.ndarray:
         """``n`` plans from independent noise draws: (n, T, 2) or (n, B, T, 2), not clipped.
@@ -141,6 +149,8 @@ class Controller:
             raise ValueError("reference must hold at least one trajectory (its batch axis is empty)")
         if T < 1:
             raise ValueError("reference must have at least 2 samples")
+        if self.observe is not None:
+            X = self.observe(X)
         self.check_workspace(X)
         episodes, steps = np.repeat(np.arange(B), T), np.tile(np.arange(T), B)
         windows = torch.as_tensor(gather_windows(X, episodes, steps, self.model.context), dtype=torch.float32)

@@ -118,7 +118,7 @@ def split_episodes(n_episodes: int, seed: int, fractions=(0.8, 0.1)):
     return np.sort(order[:n_train]), np.sort(order[n_train:n_train + n_val]), np.sort(order[n_train + n_val:])
 
 
-def _dataset_from(arrays: dict | None, key: str, robot: Robot, gravity: str) -> Dataset | None:
+def _dataset_from(arrays: dict | None, key: str, robot: Robot, gravity: str, u_max: float = U_MAX) -> Dataset | None:
     """A Dataset from cached arrays, or None when any is missing or inconsistent."""
     try:
         data = Dataset(**{k: arrays[k] for k in ("u", "states", "train", "val", "test")}, key=key, robot=robot,
@@ -127,7 +127,7 @@ def _dataset_from(arrays: dict | None, key: str, robot: Robot, gravity: str) -> 
         return None
     E, T, _ = data.u.shape
     consistent = (data.states.shape == (E, T + 1, 6) and np.isfinite(data.states).all()
-                  and np.abs(data.u).max() <= U_MAX and len(data.train) + len(data.val) + len(data.test) == E)
+                  and np.abs(data.u).max() <= u_max and len(data.train) + len(data.val) + len(data.test) == E)
     return data if consistent else None
 
 
@@ -140,33 +140,40 @@ def dataset_path(profile: Profile, robot: Robot = SIM_ROBOT, gravity: str = "ver
 
 def load_dataset(profile: Profile, robot: Robot = SIM_ROBOT, gravity: str = "vertical", *,
                  progress: bool = True, data_dir: Path = DATA_DIR) -> Dataset:
-    """The profile's polynomial-excitation dataset, generated on first use and cached.
-
-    Generation runs in blocks saved as they finish, so an interrupted run resumes where
-    it stopped; the final file appears atomically.
-    """
+    """The profile's polynomial-excitation dataset, generated on first use and cached."""
     path = dataset_path(profile, robot, gravity, data_dir)
-    cached = _dataset_from(read_npz(path), path.stem, robot, gravity)
+    n_steps = int(round(profile.episode_seconds / DT))
+    return simulated_dataset(path, lambda: polynomial_excitation(profile.n_episodes, n_steps,
+                                                                  np.random.default_rng(profile.seed)),
+                             Simulator(robot, gravity=gravity), profile.seed, progress=progress)
+
+
+def simulated_dataset(path: Path, excitation, simulator: Simulator, seed: int, *, u_max: float = U_MAX,
+                      progress: bool = True) -> Dataset:
+    """The Dataset cached at ``path``, or the episodes of ``excitation()`` (E, T, 2) run through
+    ``simulator`` and split by ``seed``, saved there. Generation runs in blocks saved as they
+    finish, so an interrupted run resumes where it stopped; the final file appears atomically."""
+    robot, gravity = simulator.robot, simulator.gravity
+    cached = _dataset_from(read_npz(path), path.stem, robot, gravity, u_max)
     if cached is not None:
         return cached
-    n_steps = int(round(profile.episode_seconds / DT))
-    u = polynomial_excitation(profile.n_episodes, n_steps, np.random.default_rng(profile.seed))
-    simulator = Simulator(robot, gravity=gravity)
+    u = excitation()
+    n_episodes, n_steps, _ = u.shape
     blocks_dir = path.with_suffix(".blocks")
     blocks_dir.mkdir(parents=True, exist_ok=True)
     states = []
-    for start in range(0, profile.n_episodes, BLOCK_EPISODES):
-        stop = min(start + BLOCK_EPISODES, profile.n_episodes)
+    for start in range(0, n_episodes, BLOCK_EPISODES):
+        stop = min(start + BLOCK_EPISODES, n_episodes)
         block_path = blocks_dir / f"{start:06d}.npz"
         done = (read_npz(block_path) or {}).get("states")
         if done is None or done.shape != (stop - start, n_steps + 1, 6):
             done = simulator.rollout(u[start:stop], progress=progress)
             write_npz(block_path, states=done)
         states.append(done)
-    train, val, test = split_episodes(profile.n_episodes, profile.seed)
+    train, val, test = split_episodes(n_episodes, seed)
     write_npz(path, u=u, states=np.concatenate(states), train=train, val=val, test=test)
     shutil.rmtree(blocks_dir, ignore_errors=True)  # another process making the same data may clean up first
-    return _dataset_from(read_npz(path), path.stem, robot, gravity)
+    return _dataset_from(read_npz(path), path.stem, robot, gravity, u_max)
 
 
 def coverage(training_states, query_states, held_out_states, quantile: float = 0.99, max_points: int = 200_000,

@@ -15,6 +15,10 @@ closed_loop: Table III extended: the twin's RF-FWD open loop and in closed loop 
     learning across repetitions, each also calibrated on an identification run
     (``calibration``); camera latency 0 / 33 / 66 ms and 10 % lost frames; open / calibrated
     open / closed / calibrated closed under each doubled gap term.
+ambiguity: issue 15's inverses that are genuinely ambiguous, fixed before any ran: the MLP
+    against RF and RF-FWD on each dataset variant (``variants``: a folded workspace, a weakly
+    damped rod under piecewise-constant actuation, positions only, finite-difference
+    velocities with 0 / 0.5 / 2 mm position noise), per step and open loop.
 twin_burst: where the twin's loops break: the burst circle continued to a 0.2 s period, open
     loop, closed loop and learning across repetitions, scored per revolution.
 """
@@ -27,8 +31,9 @@ from typing import Callable
 
 import numpy as np
 import torch
+from scipy import stats as scipy_stats
 
-from . import data, floor, hardware, identification, stress, train
+from . import ambiguity, data, floor, hardware, identification, stress, train
 from .calibration import Calibration
 from .control import Controller, SaturationWarning, evaluate, score
 from .profiles import Profile, TrainConfig, get_profile
@@ -37,6 +42,7 @@ from .report import FLOOR
 from .robots import HW_ROBOT, SIM_ROBOT
 from .sim import Simulator
 from .store import cache_file, read_npz, write_npz
+from .variants import VARIANTS, variant_dataset
 from .trajectories import (STRUCTURED, cached_references, evaluation_references, hardware_burst_reference,
                            hardware_references, random_references)
 
@@ -233,6 +239,79 @@ def _size_run(cell: dict, profile_name: str, device: str, workdir: Path, key: st
             for row in results.to_dict("records")]
 
 
+# ---------------------------------------------------------------------------- ambiguity
+# Fixed before any ran (issue 15 section 3): every variant of ``variants.VARIANTS`` with its
+# own 1000 episodes, the MLP against RF and RF-FWD, 3 seeds, data_size's 20 000 optimiser steps
+# (RF-FWD's surrogate the same), scored on Table I's references (made on the variant's rod)
+# and per step on the variant's held-out episodes; flows also planned with the mean of 16 draws.
+AMBIGUITY = {
+    "ci": dict(variants=("paper", "position-only"), models=("mlp", "rf"), seeds=(0,), episodes=60, draws=8,
+               train=DATA_SIZE["ci"]["train"]),
+    "paper": dict(variants=tuple(VARIANTS), models=("mlp", "rf", "rf-fwd"), seeds=(0, 1, 2), episodes=1000, draws=16,
+                  train=DATA_SIZE["paper"]["train"]),
+}
+
+
+def _ambiguity_cells(profile_name: str) -> list[dict]:
+    grid = AMBIGUITY[profile_name]
+    return [dict(study="ambiguity", model=model, seed=seed, variant=variant)
+            for variant in grid["variants"] for model in grid["models"] for seed in grid["seeds"]]
+
+
+def _ambiguity_run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> list[dict]:
+    """One model and seed trained on one variant's data, scored per step on its held-out
+    episodes (for a flow: also the spread of its draws and how it ranks their error) and open
+    loop on Table I's references; one row per reference and plan (z = 0; flows: the mean of draws)."""
+    grid, variant = AMBIGUITY[profile_name], VARIANTS[cell["variant"]]
+    dataset = variant_dataset(variant, grid["episodes"])
+    budget = replace(get_profile(profile_name), train=grid["train"], per_step_train=grid["train"])
+    model, _ = train.ensure_trained(cell["model"], budget, dataset, variant.robot, seed=cell["seed"],
+                                    root=workdir / "models" / variant.name, device=device)
+    controller = Controller(model, cell["model"], robot=variant.robot, u_limit=variant.u_max, observe=variant.observe)
+    measured = dict(_spread(dataset, workdir), **_per_step(controller, dataset, grid["draws"]))
+    sim = Simulator(variant.robot)
+    references = table1_references(sim, profile_name)
+    plans = {"zero": {}, f"mean-of-{grid['draws']}": dict(noise="seeded", n_samples=grid["draws"])}
+    return [_unnamed(row, plan=plan, **measured)
+            for plan, options in plans.items() if controller.generative or not options
+            for row in evaluate(controller, references, sim, variant.u_max, **options)[0].to_dict("records")]
+
+
+def _spread(dataset: data.Dataset, workdir: Path) -> dict:
+    """The conditional spread of u in the dataset's training transitions and its floor (both
+    inputs together, ``ambiguity.conditional_spread``), cached per dataset (a variant's cells
+    share it)."""
+    path = cache_file(workdir, "spread", dict(dataset=dataset.key, episodes=len(dataset.train)))
+    if (cached := read_npz(path)) is None:
+        measured = ambiguity.transition_spread(dataset.states, dataset.u, dataset.train)
+        cached = dict(conditional_spread=measured.spread, conditional_spread_floor=measured.floor)
+        write_npz(path, **cached)
+    return {k: float(v) for k, v in cached.items()}
+
+
+def _per_step(controller: Controller, dataset: data.Dataset, draws: int) -> dict:
+    """u error (N, RMS) on the held-out transitions; for a flow also a single draw's and the
+    mean of ``draws`` draws' error, the draws' spread, and the Spearman correlation of the
+    spread with the z = 0 error per transition (does its uncertainty flag its mistakes?)."""
+    X, u = dataset.states[dataset.test], dataset.u[dataset.test]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SaturationWarning)  # per-step error: the plan within the range is judged
+        planned = controller.plan(X)
+
+    def rms(a):  # per input, as data_size's u_rmse_test
+        return float(np.sqrt(np.mean(np.square(a))))
+
+    row = dict(u_rmse_test=rms(planned - u))
+    if controller.generative:
+        samples = controller.sample(X, draws)  # (draws, E, T, 2)
+        spread = np.linalg.norm(samples.std(0), axis=-1)
+        error = np.linalg.norm(planned - u, axis=-1)
+        row.update(u_rmse_draw=rms(samples - u), u_rmse_mean_of_draws=rms(samples.mean(0) - u),
+                   draw_spread=rms(samples.std(0)),
+                   spread_error_spearman=float(scipy_stats.spearmanr(spread.ravel(), error.ravel())[0]))
+    return row
+
+
 # ---------------------------------------------------------------------------- closed loop
 LOOP_MODES = {  # mode -> hardware.run_twin options (repetitions: the profile's)
     "open": dict(loop="open"),
@@ -350,4 +429,5 @@ STUDIES = {
     "data_size": Study(_size_cells, _size_run),
     "closed_loop": Study(_loop_cells, _loop_run, version=2),
     "twin_burst": Study(_burst_cells, _burst_run),
+    "ambiguity": Study(_ambiguity_cells, _ambiguity_run),
 }
