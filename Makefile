@@ -1,7 +1,7 @@
 # softflow: every result of the paper from one command.
 #   make reproduce   run every notebook (PROFILE=paper by default; PROFILE=ci for minutes)
 #   make test        unit tests + nbval of the committed notebooks (ci profile)
-#   make study       recompute every cell of the studies (notebooks 08, 10) on a local Dask cluster
+#   make study       recompute every cell of the studies (notebooks 08-10) on a local Dask cluster
 SHELL := /bin/bash
 PYTHON_BASE ?= python3.11
 VENV := .venv
@@ -51,7 +51,7 @@ reproduce: $(STAMP)
 
 # Every cell of the studies, recomputed (not read from figures/sweeps/) and cached in
 # data/sweeps/, so an interrupted run resumes; SCHEDULER_FILE=s.json runs them on your cluster.
-STUDIES := table1 protocol closed_loop twin_burst
+STUDIES := table1 protocol data_size ambiguity closed_loop twin_burst
 study: $(STAMP)
 	for s in $(STUDIES); do \
 		$(PY) -m softflow sweep $$s --profile $(PROFILE) --recompute $(if $(SCHEDULER_FILE),--scheduler-file $(SCHEDULER_FILE)) || exit 1; \

@@ -346,3 +346,75 @@ def identified_terms(identified):
     ax.legend(fontsize=7)
     fig.tight_layout()
     return fig
+
+
+def against_data_size(summary, labels: dict):
+    """Tracking RMSE against the training episodes per model, with interval bands, one panel
+    per reference family (``summary``: model, episodes, family, mean, low, high)."""
+    families = list(dict.fromkeys(summary["family"]))
+    fig, axes = plt.subplots(1, len(families), figsize=(4.6 * len(families), 3.6), squeeze=False)
+    for ax, family in zip(axes[0], families):
+        for model, part in summary[summary["family"] == family].groupby("model", sort=False):
+            line, = ax.plot(part["episodes"], part["mean"], "o-", ms=3, label=labels.get(model, model))
+            ax.fill_between(part["episodes"], part["low"], part["high"], color=line.get_color(), alpha=0.15)
+        ax.set(xscale="log", yscale="log", xlabel="training episodes", ylabel="RMSE [mm]", title=f"{family} references")
+    axes[0, 0].legend(fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
+def ambiguity_panel(per_step, labels: dict):
+    """Per dataset variant: each model's per-step u error (bars) beside the data's conditional
+    spread and its floor (per input, markers); and the flows' draw spread against their error
+    (Spearman correlation per transition). ``per_step``: indexed by (variant, model)."""
+    variants = list(dict.fromkeys(per_step.index.get_level_values("variant")))
+    models = list(dict.fromkeys(per_step.index.get_level_values("model")))
+    fig, (ax, ax_rank) = plt.subplots(1, 2, figsize=(11, 3.8), gridspec_kw=dict(width_ratios=(2, 1)))
+    width, x = 0.8 / len(models), np.arange(len(variants))
+    for k, model in enumerate(models):
+        part = per_step.xs(model, level="model").reindex(variants)
+        ax.bar(x + k * width, part["u_rmse_test"], width, label=labels.get(model, model))
+        if "spread_error_spearman" in part and part["spread_error_spearman"].notna().any():
+            ax_rank.bar(x + k * width, part["spread_error_spearman"], width, color=f"C{k}", label=labels.get(model, model))
+    first = per_step.groupby(level="variant", sort=False).first().reindex(variants)
+    centre = x + width * (len(models) - 1) / 2
+    ax.plot(centre, first["conditional_spread"] / np.sqrt(2), "k_", ms=18, mew=2, label="conditional spread")
+    ax.plot(centre, first["conditional_spread_floor"] / np.sqrt(2), "k_", ms=18, mew=1, alpha=0.4,
+            label="estimator floor")
+    for a in (ax, ax_rank):
+        a.set_xticks(centre, variants, rotation=30, ha="right")
+    ax.set(ylabel="per-step u error, RMS per input [N]", yscale="log")
+    ax_rank.set(ylabel="Spearman(draw spread, error)", ylim=(-0.2, 1))
+    ax_rank.axhline(0, color="k", lw=0.8)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
+def regime_map(table, labels: dict):
+    """Flow minus MLP (z = 0 plans) against the measured ambiguity (conditional spread over its
+    estimator floor), one point per variant and flow: tracking RMSE (mm, per family) and the
+    per-step u error (N), with 95 % intervals; below zero the flow wins."""
+    fig, (ax, ax_step) = plt.subplots(1, 2, figsize=(11, 4))
+    ambiguity = table["conditional_spread"] / table["spread_floor"]
+    markers = {flow: m for flow, m in zip(dict.fromkeys(table.index.get_level_values("flow")), "os^")}
+    for (variant, flow), level in ambiguity.items():
+        row = table.loc[(variant, flow)]
+        for k, family in enumerate(("shape", "random")):
+            ax.errorbar(level, row[f"{family}_mm"], [[row[f"{family}_mm"] - row[f"{family}_low"]],
+                                                     [row[f"{family}_high"] - row[f"{family}_mm"]]],
+                        fmt=markers[flow], color=f"C{k}", capsize=3)
+        step_error = [[row.step_N - row.step_low], [row.step_high - row.step_N]] if np.isfinite(row.step_low) else None
+        ax_step.errorbar(level, row.step_N, step_error, fmt=markers[flow], color="k", capsize=3)
+        for a, y in ((ax, row["random_mm"]), (ax_step, row.step_N)):
+            a.annotate(variant, (level, y), fontsize=6, xytext=(3, 3), textcoords="offset points")
+    for k, family in enumerate(("shape", "random")):
+        ax.plot([], [], "o", color=f"C{k}", label=f"{family} references")
+    for flow, m in markers.items():
+        ax.plot([], [], m, color="gray", label=f"{labels.get(flow, flow)} - MLP")
+    for a, unit in ((ax, "tracking RMSE [mm]"), (ax_step, "per-step u error [N]")):
+        a.axhline(0, color="k", lw=0.8)
+        a.set(xlabel="conditional spread / estimator floor (1: none measurable)", ylabel=f"flow - MLP, {unit}")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    return fig

@@ -360,3 +360,51 @@ def protocol_table(rows: pd.DataFrame, family: str = "shape") -> pd.DataFrame:
     table = table[table_order(table.columns)]
     table["coverage"] = part.groupby("condition", sort=False)["coverage"].mean()
     return table
+
+
+# ---------------------------------------------------------------------------- where a flow wins (notebook 09)
+FLOWS = ("rf", "rf-fwd")  # against the MLP, fixed before the ambiguity study ran
+
+
+def data_size_table(rows: pd.DataFrame, value: str = "rmse_mm") -> pd.DataFrame:
+    """Mean of ``value`` with its interval per model, training episodes and reference family."""
+    return stats.summarise(rows, value, by=("model", "episodes", "family"))
+
+
+def per_step_table(rows: pd.DataFrame, by, values) -> pd.DataFrame:
+    """Per-step measurements (one per trained model, repeated on its reference rows): the mean
+    over seeds of each of ``values`` per group of ``by``."""
+    per_model = rows.drop_duplicates(subset=[*by, "seed"])
+    return per_model.groupby(list(by), sort=False)[list(values)].mean()
+
+
+def regime_map(rows: pd.DataFrame) -> pd.DataFrame:
+    """Per ambiguity variant: the conditional spread of u (and the estimator's floor) and each
+    flow minus the MLP, z = 0 plans: tracking RMSE (mm) per family, paired over references,
+    and the per-step u error (N), over seeds; a verdict only where an interval excludes 0."""
+    out = []
+    plans = rows[rows["plan"] == "zero"]
+    for variant, part in plans.groupby("variant", sort=False):
+        spread = part.iloc[0]
+        for flow in (f for f in FLOWS if f in set(part["model"])):
+            row = dict(variant=variant, flow=flow, conditional_spread=spread.conditional_spread,
+                       spread_floor=spread.conditional_spread_floor)
+            for family in ("shape", "random"):
+                interval = stats.difference(part, flow, "mlp", family)
+                row.update({f"{family}_mm": interval.estimate, f"{family}_low": interval.low,
+                            f"{family}_high": interval.high, f"{family}_verdict": _verdict(interval, flow)})
+            # one number per trained model: the interval is over seeds alone, so it needs several
+            steps = part.drop_duplicates(subset=["model", "seed"]).assign(reference="per step", family="step")
+            interval = stats.difference(steps, flow, "mlp", "step", "u_rmse_test")
+            several = steps.groupby("model").seed.nunique().min() > 1
+            row.update(step_N=interval.estimate, step_low=interval.low if several else np.nan,
+                       step_high=interval.high if several else np.nan,
+                       step_verdict=_verdict(interval, flow) if several else "one seed: no interval")
+            out.append(row)
+    return pd.DataFrame(out).set_index(["variant", "flow"])
+
+
+def _verdict(interval: stats.Interval, flow: str) -> str:
+    if not interval.excludes_zero:
+        return "no ranking"
+    return f"{LABELS[flow]} lower" if interval.high < 0 else "MLP lower"
