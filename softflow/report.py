@@ -38,6 +38,8 @@ SOURCES = {
     "twin_results.csv": "06_hardware_replay.ipynb", "baseline_sizes.csv": "03_baselines.ipynb",
     "design_sweep.csv": "04_rf_variants.ipynb", "twin_sensitivity.csv": "06_hardware_replay.ipynb",
     **{f"08_{name}.csv": "08_honest_table1.ipynb" for name in ("table1_ci", "table2_ci", "differences", "protocol", "speed")},
+    **{f"10_{name}.csv": "10_closed_loop.ipynb" for name in ("table3_extended", "latency", "gap_sensitivity",
+                                                              "burst_breaks", "burst_revolutions", "identified")},
 }
 
 # The paper's numbers (Tables I-IV of the paper in ../shared/paper).
@@ -57,14 +59,15 @@ PAPER_TABLE4 = pd.DataFrame([
 ], columns=["method", "control", "inference_ms", "speed_m_s (v/L 1/s)", "error_mm (%L)", "train_min"]).set_index("method")
 
 
-def read_result(profile: Profile, name: str) -> pd.DataFrame:
-    """A result CSV of a profile, or a ValueError naming the notebook that writes it."""
+def read_result(profile: Profile, name: str, **read_options) -> pd.DataFrame:
+    """A result CSV of a profile (``read_options`` go to pandas), or a ValueError naming the
+    notebook that writes it."""
     path = profile.output_dir / name
     if not path.exists():
         notebook = SOURCES.get(name, "the notebook that writes it")
         raise ValueError(f"{path} is missing: run notebooks/{notebook} with profile {profile.name!r} first "
                          f"(make reproduce runs every notebook in order)")
-    return pd.read_csv(path)
+    return pd.read_csv(path, **read_options)
 
 
 def _ours(profile: Profile) -> pd.DataFrame:
@@ -117,8 +120,10 @@ def _beside(ours: pd.DataFrame, paper: pd.DataFrame) -> pd.DataFrame:
 def markdown(table: pd.DataFrame, digits: int = 2) -> str:
     """A GitHub-flavoured Markdown table (no extra dependency)."""
     columns = [" ".join(map(str, c)) if isinstance(c, tuple) else str(c) for c in table.columns]
-    rows = [[LABELS.get(str(index), str(index))] + [_cell(v, digits) for v in values] for index, values in zip(table.index, table.values)]
-    lines = ["| " + " | ".join([table.index.name or ""] + columns) + " |", "|" + "---|" * (len(columns) + 1)]
+    rows = [[" ".join(map(str, index)) if isinstance(index, tuple) else LABELS.get(str(index), str(index))]
+            + [_cell(v, digits) for v in values] for index, values in zip(table.index, table.values)]
+    name = ", ".join(n or "" for n in table.index.names)
+    lines = ["| " + " | ".join([name] + columns) + " |", "|" + "---|" * (len(columns) + 1)]
     return "\n".join(lines + ["| " + " | ".join(row) + " |" for row in rows])
 
 
@@ -181,7 +186,11 @@ FIGURES = [("Open-loop tracking, RF family (Circle, Heart, Rand2, Rand3)", "04_t
            ("Hardware twin: stroboscopic composites", "06_stroboscope.png"),
            ("Table I with 95 % intervals over seeds and references, and the ILC floor", "08_table1_ci.png"),
            ("Mean RMSE on the shapes under each evaluation protocol", "08_protocol.png"),
-           ("RMSE against the shapes' speed, with the coverage by the training states", "08_speed.png")]
+           ("RMSE against the shapes' speed, with the coverage by the training states", "08_speed.png"),
+           ("Open against closed loop on the twin's star (camera tracks)", "10_open_closed.png"),
+           ("Closed loop against camera latency", "10_latency.png"),
+           ("Where the twin's loops break on the burst", "10_burst.png"),
+           ("Identified reality-gap terms against the truth", "10_identified.png")]
 
 
 def claims(profile: Profile) -> pd.DataFrame:
@@ -259,6 +268,31 @@ def trust_section(profile: Profile) -> list[str]:
             markdown(protocol.rename(columns=LABELS)), ""]
 
 
+def closed_loop_section(profile: Profile) -> list[str]:
+    """Table III extended, latency, lost frames, each gap term doubled, the burst's break and the
+    identified parameters (notebook 10)."""
+    table = read_result(profile, "10_table3_extended.csv").set_index(["gravity", "reference"])
+    each = table.drop(index="mean", level="reference")
+    worse = pd.DataFrame({mode: (each[mode] > each["open"]).groupby(level="gravity", sort=False).sum()
+                          for mode in each.columns.drop("open")}).astype(int)
+    latency = read_result(profile, "10_latency.csv").set_index(["latency", "dropped"])
+    gaps = read_result(profile, "10_gap_sensitivity.csv", header=[0, 1], index_col=0)
+    gaps.columns = [f"{mode}, {gravity}" for gravity, mode in gaps.columns]
+    breaks = read_result(profile, "10_burst_breaks.csv").set_index("model")
+    identified = read_result(profile, "10_identified.csv", index_col=0)
+    return ["## Closing the loop on the twin (notebook 10)", "",
+            "Table III extended: RMSE through the camera (mm) under `TYPICAL_GAP` with 33 ms camera latency, RF-FWD "
+            "twin models, per loop mode (notebook 10 says what each is); `mean` is over the four shapes.", "",
+            markdown(table), "", "References (of the four shapes and the burst) on which a mode is worse than the "
+            "open loop:", "", markdown(worse), "",
+            "Closed loop (`closed`) against camera latency (s) and lost frames, mean over the shapes (mm):", "",
+            markdown(latency), "", "Each term of the reality gap doubled, mean over the shapes (mm):", "",
+            markdown(gaps), "", "Where the loops break on the burst circle sped up to a 0.2 s period (the first "
+            "revolution above 10 % of L; empty: never):", "", markdown(breaks), "",
+            "System identification through the camera (relative errors of E, eta, rho; motor lag in s):", "",
+            markdown(identified, 3), ""]
+
+
 def design_choices(profile: Profile) -> list[str]:
     """The sweeps behind the defaults: baseline sizes (notebook 03), RF design at the short budget (04)."""
     sizes = read_result(profile, "baseline_sizes.csv").set_index("model")[["size", "parameters", "rmse_shape_mm",
@@ -295,6 +329,7 @@ def results_page(profile: Profile, tables: dict, run_dir: Path) -> str:
     for name, title in titles.items():
         lines += [f"## {title}", "", tables[name], ""]
     lines += trust_section(profile)
+    lines += closed_loop_section(profile)
     lines += ["## The paper's claims, reproduced or not", "", markdown(claims(profile)), ""]
     lines += design_choices(profile)
     lines += ["## Key figures", ""]

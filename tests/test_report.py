@@ -84,3 +84,37 @@ def test_study_tables_carry_intervals_the_floor_and_a_verdict():
     grid = report.protocol_table(conditions)
     assert list(grid.columns) == [*report.MODELS, report.FLOOR, "coverage"]
     assert grid.loc["table1", "lstm"] == pytest.approx(6.6)
+
+
+def test_regime_map_pairs_each_flow_with_the_mlp_per_variant():
+    rows = []
+    for variant, gain in (("paper", 0.0), ("folded", -2.0)):
+        for model in ("mlp", "rf"):
+            for seed in (0, 1, 2):
+                for k, (reference, family) in enumerate((("circle", "shape"), ("star", "shape"), ("Rand1", "random"))):
+                    rmse = 5.0 + k + 0.1 * seed + (gain if model == "rf" else 0.0)
+                    rows.append(dict(variant=variant, model=model, seed=seed, plan="zero", reference=reference,
+                                     family=family, rmse_mm=rmse, u_rmse_test=0.1 + 0.01 * seed,
+                                     conditional_spread=0.3, conditional_spread_floor=0.1))
+    table = report.regime_map(pd.DataFrame(rows))
+    assert table.loc[("folded", "rf"), "shape_mm"] == pytest.approx(-2.0)
+    assert table.loc[("folded", "rf"), "shape_verdict"] == "RF lower"
+    assert table.loc[("paper", "rf"), "random_mm"] == pytest.approx(0.0, abs=1e-12)
+    assert table.loc[("paper", "rf"), "random_verdict"] == "no ranking"
+    assert table.loc[("paper", "rf"), "step_N"] == pytest.approx(0.0, abs=1e-12)
+
+
+def test_closed_loop_section_counts_references_worse_than_open_loop(profile):
+    out = profile.output_dir
+    pd.DataFrame({"gravity": ["vertical"] * 3, "reference": ["star", "circle", "mean"], "open": [5.0, 3.0, 4.0],
+                  "closed": [6.0, 2.0, 4.0], "closed-ilc": [1.0, 1.0, 1.0]}).to_csv(out / "10_table3_extended.csv",
+                                                                                   index=False)
+    pd.DataFrame({"latency": [0.0], "dropped": [0.0], "vertical": [4.0]}).to_csv(out / "10_latency.csv", index=False)
+    pd.DataFrame([["gravity", "vertical"], ["mode", "open"], ["gap", None], ["typical", 4.0]]).to_csv(
+        out / "10_gap_sensitivity.csv", index=False, header=False)
+    pd.DataFrame({"model": ["open, vertical"], "breaks_at_revolution": [3]}).to_csv(out / "10_burst_breaks.csv",
+                                                                                    index=False)
+    pd.DataFrame({"truth": [0.1]}, index=["density"]).to_csv(out / "10_identified.csv")
+    text = "\n".join(report.closed_loop_section(profile))
+    assert "| vertical | 1 | 0 |" in text  # closed worse on the star only, learning never
+    assert "| typical | 4.00 |" in text
