@@ -418,3 +418,25 @@ def regime_map(table, labels: dict):
     ax.legend(fontsize=7)
     fig.tight_layout()
     return fig
+
+
+def consistency_weight(summary, diagnostics, taus):
+    """RF-FWD's consistency weight: tracking RMSE against lambda per family with interval bands
+    (``summary``: consistency, family, mean, low, high); and, per lambda, the u error of the
+    loss's one-step endpoint estimate (solid) and of a short Euler rollout (dashed) against tau
+    (``diagnostics``: indexed by lambda, columns one_step_u_error_tau<t>, euler_u_error_tau<t>)."""
+    fig, (ax, ax_tau) = plt.subplots(1, 2, figsize=(10, 3.6))
+    for family, part in summary.groupby("family", sort=False):
+        line, = ax.plot(part["consistency"], part["mean"], "o-", ms=3, label=f"{family} references")
+        ax.fill_between(part["consistency"], part["low"], part["high"], color=line.get_color(), alpha=0.15)
+    ax.set_xscale("symlog", linthresh=0.03)  # lambda = 0 (RF) on the same axis as 0.03-1
+    ax.set(xlabel="consistency weight lambda", ylabel="RMSE [mm]", yscale="log", xlim=(0, 1.2 * summary["consistency"].max()))
+    ax.legend(fontsize=7)
+    for k, (weight, row) in enumerate(diagnostics.iterrows()):
+        for label, style in (("one_step", "-"), ("euler", "--")):
+            ax_tau.plot(taus, [row[f"{label}_u_error_tau{t:g}"] for t in taus], style, color=f"C{k}",
+                        label=f"lambda = {weight:g}" if label == "one_step" else None)
+    ax_tau.set(xlabel="tau", ylabel="endpoint u error [N] (solid: one step, dashed: Euler)")
+    ax_tau.legend(fontsize=7)
+    fig.tight_layout()
+    return fig

@@ -19,6 +19,9 @@ ambiguity: issue 15's inverses that are genuinely ambiguous, fixed before any ra
     against RF and RF-FWD on each dataset variant (``variants``: a folded workspace, a weakly
     damped rod under piecewise-constant actuation, positions only, finite-difference
     velocities with 0 / 0.5 / 2 mm position noise), per step and open loop.
+fwd_lambda: RF-FWD's consistency weight, fixed before any ran: lambda 0 / 0.03 / 0.1 / 0.3 / 1
+    at the full budget, 3 seeds, with what the consistency term sees (the surrogate's error,
+    the one-step endpoint estimate against a short Euler rollout).
 twin_burst: where the twin's loops break: the burst circle continued to a 0.2 s period, open
     loop, closed loop and learning across repetitions, scored per revolution.
 """
@@ -312,6 +315,79 @@ def _per_step(controller: Controller, dataset: data.Dataset, draws: int) -> dict
     return row
 
 
+# ---------------------------------------------------------------------------- RF-FWD's consistency weight
+# Fixed before any ran (issue 15 section 4): lambda in {0, 0.03, 0.1, 0.3, 1} x seeds 0-2 at
+# RF-FWD's full paper budget. lambda = 0 is RF and lambda = 1 the shipped RF-FWD: those cells
+# share the table1 study's models (same seeds, same budget), as do the forward surrogates.
+LAMBDA_GRID = {
+    "ci": dict(weights=(0.0, 1.0), seeds=(0,), diagnostic_points=2000),
+    "paper": dict(weights=(0.0, 0.03, 0.1, 0.3, 1.0), seeds=(0, 1, 2), diagnostic_points=20000),
+}
+DIAGNOSTIC_TAUS = (0.05, 0.25, 0.5, 0.75, 0.95)  # where the one-step endpoint estimate is checked
+DIAGNOSTIC_EULER = 4  # steps of the short Euler rollout it is compared with
+
+
+def _lambda_cells(profile_name: str) -> list[dict]:
+    grid = LAMBDA_GRID[profile_name]
+    return [dict(study="fwd_lambda", model="rf-fwd", seed=seed, consistency=weight)
+            for weight in grid["weights"] for seed in grid["seeds"]]
+
+
+def _lambda_run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> list[dict]:
+    """RF-FWD with one consistency weight and seed, scored open loop on Table I's references
+    and per step, with the forward surrogate's one-step error and the consistency term's
+    endpoint estimate against a short Euler rollout (``_consistency_diagnostics``)."""
+    profile, sim, weight = get_profile(profile_name), Simulator(SIM_ROBOT), cell["consistency"]
+    dataset = data.load_dataset(profile, progress=False)
+    name = "rf" if weight == 0 else "rf-fwd"  # lambda = 0 is RF: no surrogate to train or attach
+    kwargs = None if weight in (0.0, 1.0) else dict(consistency=weight)
+    shared = workdir.parent / "table1" / "models" / profile_name
+    model, checkpoint = train.ensure_trained(name, profile, dataset, seed=cell["seed"], model_kwargs=kwargs,
+                                             root=shared, device=device)
+    forward, _ = train.ensure_trained("forward", profile, dataset, seed=cell["seed"], root=shared, device=device)
+    controller = Controller(model, name)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SaturationWarning)
+        u_test = controller.plan(dataset.states[dataset.test])
+    measured = dict(u_rmse_test=float(np.sqrt(np.mean((u_test - dataset.u[dataset.test]) ** 2))),
+                    best_val=float(checkpoint["best_val"]), epochs_run=int(checkpoint["epochs_run"]),
+                    **_consistency_diagnostics(model, forward, dataset, LAMBDA_GRID[profile_name]["diagnostic_points"]))
+    results, _ = evaluate(controller, table1_references(sim, profile_name), sim)
+    return [_unnamed(row, **measured) for row in results.to_dict("records")]
+
+
+def _consistency_diagnostics(model, forward, dataset: data.Dataset, points: int) -> dict:
+    """What RF-FWD's consistency term sees, on held-out transitions: the surrogate's one-step
+    error (mm of tip position), and at each tau of DIAGNOSTIC_TAUS the u error (N, RMS per
+    input) and the consistency residual (normalised increment, RMS) of the loss's one-step
+    endpoint estimate xi_tau + (1 - tau) v against a DIAGNOSTIC_EULER-step Euler rollout from tau."""
+    held_out = [a.reshape(-1, a.shape[-1]) for a in dataset.transitions(dataset.test)]  # x_t, x_t+1, u
+    rng = np.random.default_rng(0)
+    pick = rng.choice(len(held_out[0]), min(points, len(held_out[0])), replace=False)
+    x, x_next, u = (torch.as_tensor(a[pick], dtype=torch.float32) for a in held_out)
+    window = torch.stack([x, x_next], 1)
+    out = {}
+    with torch.inference_mode():
+        predicted = forward.predict_next(x, u)
+        out["forward_step_mm"] = float(1e3 * torch.sqrt(torch.mean((predicted - x_next)[:, :3] ** 2)))
+        condition, norm = model.condition(window), model.target_norm()
+        xi, z = norm.normalize(u), torch.as_tensor(rng.standard_normal((len(u), 2)), dtype=torch.float32)
+        target = forward.delta_norm.normalize(x_next - x)
+        for tau_value in DIAGNOSTIC_TAUS:
+            tau = torch.full((len(u),), tau_value)
+            xi_tau = (1 - tau_value) * z + tau_value * xi
+            one_step = xi_tau + (1 - tau_value) * model.velocity(xi_tau, tau, condition)
+            rolled, h = xi_tau, (1 - tau_value) / DIAGNOSTIC_EULER
+            for k in range(DIAGNOSTIC_EULER):
+                rolled = rolled + h * model.velocity(rolled, tau + k * h, condition)
+            for label, estimate in (("one_step", one_step), ("euler", rolled)):
+                u_hat = norm.unnormalize(estimate)
+                out[f"{label}_u_error_tau{tau_value:g}"] = float(torch.sqrt(torch.mean((u_hat - u) ** 2)))
+                out[f"{label}_residual_tau{tau_value:g}"] = float(
+                    torch.sqrt(torch.mean((forward.increment(x, u_hat) - target) ** 2)))
+    return out
+
+
 # ---------------------------------------------------------------------------- closed loop
 LOOP_MODES = {  # mode -> hardware.run_twin options (repetitions: the profile's)
     "open": dict(loop="open"),
@@ -430,4 +506,5 @@ STUDIES = {
     "closed_loop": Study(_loop_cells, _loop_run, version=2),
     "twin_burst": Study(_burst_cells, _burst_run),
     "ambiguity": Study(_ambiguity_cells, _ambiguity_run),
+    "fwd_lambda": Study(_lambda_cells, _lambda_run),
 }
