@@ -179,7 +179,7 @@ class CablePlant:
         pretension, less any slack): the state ``step`` advances."""
         sim = self.sim
         self.q, self.qd = np.repeat(sim.rest_q()[None], batch, 0), np.zeros((batch, sim.nq))
-        self.motor = self.pretension / self.stiffness - cable_displacements(sim.bend_angles(self.q), self.robot)
+        self.motor = np.repeat(rest_command(sim, self.stiffness, self.pretension)[None], batch, 0)
 
     def step(self, command) -> np.ndarray:
         """Hold motor commands (B, C) in m for DT: the rods move; returns the mean cable

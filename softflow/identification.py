@@ -20,6 +20,7 @@ from .hardware import CablePlant, RealityGap, cable_commands, observe_run, twin_
 from .sim import Simulator
 
 EXCITATION_SECONDS = 3.0
+FITTED = ("youngs_modulus", "damping", "density", "motor_lag")  # the RealityGap terms identify fits
 
 
 def excitation_commands(sim: Simulator, seconds: float = EXCITATION_SECONDS, seed: int = 0, u_max: float = 2.0):

@@ -438,7 +438,7 @@ def _twin_setup(cell: dict, profile_name: str, device: str, workdir: Path):
     if options.pop("calibrated", False):  # an identification run on this rig first, as on a real one
         fit = _identified_twin(sim, gap, profile.identification_seconds, workdir)
         options["calibration"] = Calibration.identified(sim, fit)
-        identified = {f"identified_{term}": getattr(fit.gap, term) for term in IDENTIFIED}
+        identified = {f"identified_{term}": getattr(fit.gap, term) for term in identification.FITTED}
     controller = Controller(model, cell["model"], robot=HW_ROBOT, gravity=gravity)
     return controller, sim, gap, dict(options, camera_latency=cell["latency"], dropped=cell["dropped"]), identified
 
@@ -452,20 +452,17 @@ def _loop_run(cell: dict, profile_name: str, device: str, workdir: Path, key: st
     return [dict(row, **identified) for row in rows.drop(columns=["gravity", "loop"]).to_dict("records")]
 
 
-IDENTIFIED = ("youngs_modulus", "damping", "density", "motor_lag")
-
-
 def _identified_twin(sim: Simulator, gap: hardware.RealityGap, seconds: float, workdir: Path):
     """``identification.identify_twin``, cached in the sweep's workdir: the calibrated cells of
     one configuration and gap share the same identification run (deterministic, ~2 min)."""
     path = cache_file(workdir, "identified", dict(simulator=sim.spec(), gap=asdict(gap), seconds=seconds))
     if (cached := read_npz(path)) is None:
         fit = identification.identify_twin(sim, gap, seconds=seconds)
-        write_npz(path, **{term: getattr(fit.gap, term) for term in IDENTIFIED}, rmse_mm=fit.rmse_mm,
+        write_npz(path, **{term: getattr(fit.gap, term) for term in identification.FITTED}, rmse_mm=fit.rmse_mm,
                   evaluations=fit.evaluations)
         return fit
-    return identification.Identified(hardware.RealityGap(**{term: float(cached[term]) for term in IDENTIFIED}),
-                                     float(cached["rmse_mm"]), int(cached["evaluations"]))
+    fitted = hardware.RealityGap(**{term: float(cached[term]) for term in identification.FITTED})
+    return identification.Identified(fitted, float(cached["rmse_mm"]), int(cached["evaluations"]))
 
 
 # ---------------------------------------------------------------------------- twin burst
