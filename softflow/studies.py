@@ -36,7 +36,7 @@ import numpy as np
 import torch
 from scipy import stats as scipy_stats
 
-from . import ambiguity, data, floor, hardware, identification, stress, train
+from . import ambiguity, data, floor, hardware, identification, loop, stress, train
 from .calibration import Calibration
 from .control import Controller, SaturationWarning, evaluate, score
 from .profiles import Profile, TrainConfig, get_profile
@@ -411,12 +411,18 @@ CAMERA_LATENCY = 0.033  # s: one frame at 30 fps
 def _loop_cells(profile_name: str) -> list[dict]:
     grid = LOOP_GRID[profile_name]
     cell = dict(study="closed_loop", model="rf-fwd", seed=0, latency=CAMERA_LATENCY, dropped=0.0, gap="typical")
-    cells = [dict(cell, gravity=g, mode=mode) for g in grid["configs"] for mode in grid["modes"]]
+    cells = [dict(cell, gravity=g, mode=mode, **_learning(mode)) for g in grid["configs"] for mode in grid["modes"]]
     cells += [dict(cell, gravity=g, mode="closed", latency=latency)
               for g in grid["configs"] for latency in grid["latencies"]]
     cells += [dict(cell, gravity=g, mode="closed", dropped=0.1) for g in grid["configs"] if grid["dropped"]]
     return cells + [dict(cell, gravity=g, mode=mode, gap=f"2x {term}") for term in grid["gaps"]
                     for g in grid["configs"] for mode in GAP_MODES]
+
+
+def _learning(mode: str) -> dict:
+    """The cell field that names the learning law's revision in modes that learn across
+    repetitions (``loop.SETTLE``: the first revision also learnt the start transient)."""
+    return dict(settle=list(loop.SETTLE)) if "repetitions" in LOOP_MODES[mode] else {}
 
 
 def _gap(name: str) -> hardware.RealityGap:
@@ -477,7 +483,7 @@ BURST_GRID = {
 
 def _burst_cells(profile_name: str) -> list[dict]:
     cell = dict(study="twin_burst", model="rf-fwd", seed=0, latency=CAMERA_LATENCY, dropped=0.0, gap="typical")
-    return [dict(cell, gravity=g, mode=mode) for g in LOOP_GRID[profile_name]["configs"]
+    return [dict(cell, gravity=g, mode=mode, **_learning(mode)) for g in LOOP_GRID[profile_name]["configs"]
             for mode in BURST_GRID[profile_name]["modes"]]
 
 

@@ -91,6 +91,28 @@ def test_learning_across_repetitions_shrinks_the_error(sim, controller):
     assert rmse[2] < 0.5 * rmse[0]
 
 
+def test_learning_leaves_the_start_transient_of_a_displaced_rig_alone(sim, controller):
+    """A rig that starts away from the reference's first state (a reality gap's sag) shows an
+    error no input removes at once; learnt, it pumps the first commands (loop.SETTLE)."""
+    reference = shape_reference(sim, "circle", size=0.04)
+    displaced = sim.static_q(np.array([[1.0, 0.0]]))
+
+    def make_rig():
+        rig = SimRig(sim)
+        rig.q = displaced.copy()
+        return rig
+
+    early = int(loop.SETTLE[0] / DT)
+    change = {}
+    for label, settle in (("ramped", loop.SETTLE), ("from the start", (0.0, DT))):
+        (first, _), (second, _) = loop.learn_by_repetition(controller, reference, make_rig, repetitions=2,
+                                                           settle=settle, correction=loop.NO_CORRECTION)
+        change[label] = np.sqrt(np.mean((second.u[:early] - first.u[:early]) ** 2))
+    assert change["ramped"] < 0.3 * change["from the start"]
+    with pytest.raises(ValueError, match="settle"):
+        loop.learn_by_repetition(controller, reference, make_rig, settle=(1.0, 0.5))
+
+
 def test_bad_input_is_refused_before_the_first_command(sim, controller):
     reference = shape_reference(sim, "circle", size=0.04)
     in_mm = Reference("mm", "shape", reference.states * 1000, reference.mask)
