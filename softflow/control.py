@@ -42,14 +42,19 @@ class Controller:
     are clipped to. ``observe``: what the model was shown of a tip path, applied to every
     reference ``plan`` and ``sample`` get (e.g. ``variants.Variant.observe``: velocities
     hidden, or by finite differences, which need the path); None: the full state. ``step``
-    takes its two states as the model sees them."""
+    takes its two states as the model sees them. ``workspace_margin``: references farther
+    than this many training standard deviations are refused (``check_workspace``); None
+    plans anything, for studies that measure extrapolation on purpose."""
 
     def __init__(self, model: torch.nn.Module, name: str, seed: int = 0, *, robot: Robot = SIM_ROBOT,
-                 gravity: str = "vertical", u_limit: float = U_MAX, observe=None):
+                 gravity: str = "vertical", u_limit: float = U_MAX, observe=None,
+                 workspace_margin: float | None = WORKSPACE_MARGIN):
         if not u_limit > 0:
             raise ValueError(f"u_limit must be a positive actuator range in N; got {u_limit!r}")
+        if workspace_margin is not None and not workspace_margin > 0:
+            raise ValueError(f"workspace_margin must be positive or None; got {workspace_margin!r}")
         self.model, self.name, self.seed, self.robot, self.gravity = model.eval(), name, seed, robot, gravity
-        self.u_limit, self.observe = float(u_limit), observe
+        self.u_limit, self.observe, self.workspace_margin = float(u_limit), observe, workspace_margin
         self.generative = isinstance(model, RectifiedFlow)
         self.statics = Simulator(robot, gravity).static_table() if model.needs_statics else None
         self.lean = LeanFlow(model) if self.generative else LeanMLP(model) if isinstance(model, InverseMLP) else None
@@ -131,15 +136,17 @@ class Controller:
 
     def check_workspace(self, X):
         """Refuse references far outside the training states (unit mistakes, another rod)."""
+        if self.workspace_margin is None:
+            return
         mean, std = (b.numpy().astype(np.float64) for b in (self.model.state_norm.mean, self.model.state_norm.std))
         score = np.abs(X[..., :3] - mean[:3]) / std[:3]
         worst = np.unravel_index(np.argmax(score), score.shape)
-        if score[worst] > WORKSPACE_MARGIN:
+        if score[worst] > self.workspace_margin:
             *where, axis = worst
             raise ValueError(f"reference tip position {'xyz'[axis]} = {X[(*where, axis)]:.4g} m at index "
                              f"{tuple(int(i) for i in where)} is {score[worst]:.0f} training standard deviations from "
-                             f"the training mean {mean[axis]:.3f} m (at most {WORKSPACE_MARGIN:g}): is it in metres, "
-                             f"and for the rod this model was trained on?")
+                             f"the training mean {mean[axis]:.3f} m (at most {self.workspace_margin:g}): is it in "
+                             f"metres, and for the rod this model was trained on?")
 
     def _plan(self, reference, noise, seed, options) -> np.ndarray:
         self._check_options(noise, options)

@@ -232,7 +232,7 @@ def _size_run(cell: dict, profile_name: str, device: str, workdir: Path, key: st
     config = replace(DATA_SIZE[profile_name]["train"], seed=cell["seed"])
     path = workdir / "models" / profile_name / f"{cell['model']}-n{cell['episodes']}-seed{cell['seed']}.pt"
     model, checkpoint = train.train(cell["model"], dataset, config, path, device=device, progress=False)
-    controller = Controller(model, cell["model"])
+    controller = Controller(model, cell["model"], workspace_margin=None)  # few episodes: extrapolation is measured
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SaturationWarning)  # per-step error: the unclipped plan is what is judged
         u_test = controller.plan(dataset.states[dataset.test])
@@ -270,7 +270,8 @@ def _ambiguity_run(cell: dict, profile_name: str, device: str, workdir: Path, ke
     budget = replace(get_profile(profile_name), train=grid["train"], per_step_train=grid["train"])
     model, _ = train.ensure_trained(cell["model"], budget, dataset, variant.robot, seed=cell["seed"],
                                     root=workdir / "models" / variant.name, device=device)
-    controller = Controller(model, cell["model"], robot=variant.robot, u_limit=variant.u_max, observe=variant.observe)
+    controller = Controller(model, cell["model"], robot=variant.robot, u_limit=variant.u_max, observe=variant.observe,
+                            workspace_margin=None)  # hidden channels shrink the training spread: measure, not refuse
     measured = dict(_spread(dataset, workdir), **_per_step(controller, dataset, grid["draws"]))
     sim = Simulator(variant.robot)
     references = table1_references(sim, profile_name)

@@ -83,3 +83,12 @@ def test_a_controller_plans_on_what_its_model_was_shown(trained):
         assert np.abs(limited.plan(X)).max() <= 0.5
     with pytest.raises(ValueError, match="u_limit"):
         control.Controller(model, "mlp", u_limit=0.0)
+
+
+def test_a_study_may_plan_beyond_the_workspace_a_user_is_held_to(trained):
+    model, _ = trained("mlp")
+    far = Simulator(SIM_ROBOT).rollout(np.full((1, 20, 2), 1.0))[0]
+    far[:, 0] += 1.0  # a metre off in x: a user's unit mistake, or a study's extrapolation
+    with pytest.raises(ValueError, match="training standard deviations"):
+        control.Controller(model, "mlp").plan(far)
+    assert np.isfinite(control.Controller(model, "mlp", workspace_margin=None).plan(far)).all()
