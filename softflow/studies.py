@@ -45,9 +45,9 @@ from .report import FLOOR
 from .robots import HW_ROBOT, SIM_ROBOT
 from .sim import Simulator
 from .store import cache_file, read_npz, write_npz
-from .variants import VARIANTS, variant_dataset
 from .trajectories import (STRUCTURED, cached_references, evaluation_references, hardware_burst_reference,
                            hardware_references, random_references)
+from .variants import VARIANTS, variant_dataset
 
 
 @dataclass(frozen=True)
