@@ -300,13 +300,19 @@ def condition_grid(table, labels: dict, title: str):
     return fig
 
 
+def band_lines(ax, summary, x: str, by: str, label=str):
+    """One line of ``mean`` against column ``x`` per group of ``by``, with its interval
+    (``low``..``high``) as a band: the studies' curves with their 95 % intervals."""
+    for group, part in summary.groupby(by, sort=False):
+        line, = ax.plot(part[x], part["mean"], "o-", ms=3, label=label(group))
+        ax.fill_between(part[x], part["low"], part["high"], color=line.get_color(), alpha=0.15)
+
+
 def against_speed(summary, coverage, labels: dict):
     """RMSE against the shapes' mean tip speed per model, with interval bands, and the
     references' coverage by the training states on a second axis."""
     fig, ax = plt.subplots()
-    for model, part in summary.groupby("model", sort=False):
-        line, = ax.plot(part["speed"], part["mean"], "o-", ms=3, label=labels.get(model, model))
-        ax.fill_between(part["speed"], part["low"], part["high"], color=line.get_color(), alpha=0.15)
+    band_lines(ax, summary, "speed", "model", lambda model: labels.get(model, model))
     ax.set(xlabel="mean tip speed of the shapes [m/s]", ylabel="RMSE [mm]", yscale="log")
     twin = ax.twinx()
     twin.plot(coverage.index, coverage.values, "k--", lw=1)
@@ -354,9 +360,7 @@ def against_data_size(summary, labels: dict):
     families = list(dict.fromkeys(summary["family"]))
     fig, axes = plt.subplots(1, len(families), figsize=(4.6 * len(families), 3.6), squeeze=False)
     for ax, family in zip(axes[0], families):
-        for model, part in summary[summary["family"] == family].groupby("model", sort=False):
-            line, = ax.plot(part["episodes"], part["mean"], "o-", ms=3, label=labels.get(model, model))
-            ax.fill_between(part["episodes"], part["low"], part["high"], color=line.get_color(), alpha=0.15)
+        band_lines(ax, summary[summary["family"] == family], "episodes", "model", lambda model: labels.get(model, model))
         ax.set(xscale="log", yscale="log", xlabel="training episodes", ylabel="RMSE [mm]", title=f"{family} references")
     axes[0, 0].legend(fontsize=7)
     fig.tight_layout()
@@ -426,9 +430,7 @@ def consistency_weight(summary, diagnostics, taus):
     loss's one-step endpoint estimate (solid) and of a short Euler rollout (dashed) against tau
     (``diagnostics``: indexed by lambda, columns one_step_u_error_tau<t>, euler_u_error_tau<t>)."""
     fig, (ax, ax_tau) = plt.subplots(1, 2, figsize=(10, 3.6))
-    for family, part in summary.groupby("family", sort=False):
-        line, = ax.plot(part["consistency"], part["mean"], "o-", ms=3, label=f"{family} references")
-        ax.fill_between(part["consistency"], part["low"], part["high"], color=line.get_color(), alpha=0.15)
+    band_lines(ax, summary, "consistency", "family", lambda family: f"{family} references")
     ax.set_xscale("symlog", linthresh=0.03)  # lambda = 0 (RF) on the same axis as 0.03-1
     ax.set(xlabel="consistency weight lambda", ylabel="RMSE [mm]", yscale="log", xlim=(0, 1.2 * summary["consistency"].max()))
     ax.legend(fontsize=7)

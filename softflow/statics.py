@@ -14,7 +14,7 @@ from tqdm import tqdm
 from .checks import as_real_array
 from .profiles import DATA_DIR
 from .robots import Robot
-from .store import cache_file, read_npz, write_npz
+from .store import cache_file, cached_arrays
 
 STATICS_VERSION = 1  # bump when a number the table or the solvers produce changes
 # inverse_static refuses a point farther than this fraction of the rod's length from every
@@ -162,14 +162,15 @@ class StaticTable:
         self.robot, self.u_range = sim.robot, u_range
         grid = np.linspace(-u_range, u_range, int(round(2 * u_range / step)) + 1)
         spec = dict(simulator=sim.spec(), u_range=u_range, step=step, version=STATICS_VERSION)
-        path = cache_file(DATA_DIR, "static-table", spec)
-        tips = (read_npz(path) or {}).get("tips")
-        if tips is None or tips.shape != (len(grid), len(grid), 3):
+
+        def compute():
             u = np.stack(np.meshgrid(grid, grid, indexing="ij"), -1).reshape(-1, 2)
             chunks = [static_tip(sim, u[i:i + 256]) for i in tqdm(range(0, len(u), 256), disable=not progress,
                                                                    desc="static table")]
-            tips = np.concatenate(chunks).reshape(len(grid), len(grid), 3)
-            write_npz(path, tips=tips)
+            return dict(tips=np.concatenate(chunks).reshape(len(grid), len(grid), 3))
+
+        tips = cached_arrays(cache_file(DATA_DIR, "static-table", spec), compute,
+                             valid=lambda a: a.get("tips") is not None and a["tips"].shape == (len(grid), len(grid), 3))["tips"]
         self.splines = [RectBivariateSpline(grid, grid, tips[..., i], kx=3, ky=3) for i in range(3)]
 
     def tip(self, u):

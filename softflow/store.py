@@ -61,6 +61,16 @@ def read_npz(path) -> dict | None:
         return None
 
 
+def cached_arrays(path, compute, valid=None) -> dict:
+    """The arrays cached at ``path``; when they are missing, corrupt or fail ``valid``, those of
+    ``compute()`` (a dict of arrays), saved there first and read back, so both paths return the same."""
+    arrays = read_npz(path)
+    if arrays is None or (valid is not None and not valid(arrays)):
+        write_npz(path, **compute())
+        arrays = read_npz(path)
+    return arrays
+
+
 def cache_file(directory, kind: str, spec: dict) -> Path:
     """``directory``/<kind>-<content key of spec>.npz"""
     return Path(directory) / f"{kind}-{content_key(spec)}.npz"

@@ -44,7 +44,7 @@ from .protocol import Protocol, apply, coverage, shapes_at
 from .report import FLOOR
 from .robots import HW_ROBOT, SIM_ROBOT
 from .sim import Simulator
-from .store import cache_file, read_npz, write_npz
+from .store import cache_file, cached_arrays
 from .trajectories import (STRUCTURED, cached_references, evaluation_references, hardware_burst_reference,
                            hardware_references, random_references)
 from .variants import VARIANTS, variant_dataset
@@ -285,11 +285,11 @@ def _spread(dataset: data.Dataset, workdir: Path) -> dict:
     """The conditional spread of u in the dataset's training transitions and its floor (both
     inputs together, ``ambiguity.conditional_spread``), cached per dataset (a variant's cells
     share it)."""
-    path = cache_file(workdir, "spread", dict(dataset=dataset.key, episodes=len(dataset.train)))
-    if (cached := read_npz(path)) is None:
+    def compute():
         measured = ambiguity.transition_spread(dataset.states, dataset.u, dataset.train)
-        cached = dict(conditional_spread=measured.spread, conditional_spread_floor=measured.floor)
-        write_npz(path, **cached)
+        return dict(conditional_spread=measured.spread, conditional_spread_floor=measured.floor)
+
+    cached = cached_arrays(cache_file(workdir, "spread", dict(dataset=dataset.key, episodes=len(dataset.train))), compute)
     return {k: float(v) for k, v in cached.items()}
 
 
@@ -462,12 +462,13 @@ def _loop_run(cell: dict, profile_name: str, device: str, workdir: Path, key: st
 def _identified_twin(sim: Simulator, gap: hardware.RealityGap, seconds: float, workdir: Path):
     """``identification.identify_twin``, cached in the sweep's workdir: the calibrated cells of
     one configuration and gap share the same identification run (deterministic, ~2 min)."""
-    path = cache_file(workdir, "identified", dict(simulator=sim.spec(), gap=asdict(gap), seconds=seconds))
-    if (cached := read_npz(path)) is None:
+    def compute():
         fit = identification.identify_twin(sim, gap, seconds=seconds)
-        write_npz(path, **{term: getattr(fit.gap, term) for term in identification.FITTED}, rmse_mm=fit.rmse_mm,
-                  evaluations=fit.evaluations)
-        return fit
+        return dict({term: getattr(fit.gap, term) for term in identification.FITTED}, rmse_mm=fit.rmse_mm,
+                    evaluations=fit.evaluations)
+
+    cached = cached_arrays(cache_file(workdir, "identified", dict(simulator=sim.spec(), gap=asdict(gap), seconds=seconds)),
+                           compute)
     fitted = hardware.RealityGap(**{term: float(cached[term]) for term in identification.FITTED})
     return identification.Identified(fitted, float(cached["rmse_mm"]), int(cached["evaluations"]))
 

@@ -19,7 +19,7 @@ from .checks import check_choice
 from .data import DT, mixed_excitation, sum_of_sines_excitation
 from .profiles import DATA_DIR
 from .sim import Simulator
-from .store import cache_file, read_npz, write_npz
+from .store import cache_file, cached_arrays
 
 REFERENCE_VERSION = 1  # bump when a reference changes (it keys the reference caches)
 NOMINAL_SPEED = 0.15  # m/s, mean tip speed along a structured path
@@ -215,13 +215,8 @@ def _unpack(arrays: dict) -> list[Reference]:
 def cached_references(sim: Simulator, kind: str, build) -> list[Reference]:
     """build(sim) -> references, cached under data/ by the simulator's numbers and REFERENCE_VERSION."""
     spec = dict(simulator=sim.spec(), kind=kind, build=build.__name__, version=REFERENCE_VERSION)
-    path = cache_file(DATA_DIR, f"references-{kind}", spec)
-    arrays = read_npz(path)
-    if arrays is not None and "names" in arrays:
-        return _unpack(arrays)
-    references = build(sim)
-    write_npz(path, **_pack(references))
-    return references
+    return _unpack(cached_arrays(cache_file(DATA_DIR, f"references-{kind}", spec), lambda: _pack(build(sim)),
+                                 valid=lambda arrays: "names" in arrays))
 
 
 def _evaluation_set(sim: Simulator) -> list[Reference]:

@@ -5,6 +5,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from softflow import data, sim, store
@@ -29,6 +30,21 @@ def test_a_failed_write_leaves_the_old_file_and_no_temporary(tmp_path):
             raise RuntimeError("interrupted")
     assert path.read_text() == "old" and sorted(p.name for p in tmp_path.iterdir()) == ["table.csv"]
 
+
+def test_cached_arrays_compute_once_and_recompute_what_is_corrupt_or_invalid(tmp_path):
+    path, calls = tmp_path / "c.npz", []
+
+    def compute():
+        calls.append(1)
+        return dict(a=np.arange(3.0))
+
+    first = store.cached_arrays(path, compute)
+    again = store.cached_arrays(path, compute)
+    assert len(calls) == 1 and np.array_equal(first["a"], again["a"])
+    path.write_bytes(path.read_bytes()[:20])  # a truncated file is never used
+    assert np.array_equal(store.cached_arrays(path, compute)["a"], np.arange(3.0)) and len(calls) == 2
+    store.cached_arrays(path, compute, valid=lambda arrays: "b" in arrays)  # stale layout: rebuilt
+    assert len(calls) == 3
 
 def test_dataset_key_follows_parameters_and_versions_not_the_name(monkeypatch):
     key = data.dataset_path(PAPER).stem
