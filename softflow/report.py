@@ -27,7 +27,7 @@ MODELS = ["mlp", "lstm", "transformer", "rf", "rf-physical", "rf-fwd"]
 BASELINES, RF_FAMILY = MODELS[:3], MODELS[3:]
 FLOOR = "ilc-floor"  # the model name of the ILC floor's rows in the studies
 LABELS = {"mlp": "MLP", "lstm": "LSTM", "transformer": "Transformer", "rf": "RF", "rf-physical": "RF-Physical",
-          "rf-fwd": "RF-FWD", FLOOR: "ILC floor (true simulator)"}
+          "rf-fwd": "RF-FWD", "mlp-physical": "MLP-Physical", FLOOR: "ILC floor (true simulator)"}
 CODE = ("softflow", "notebooks", "Makefile", "environment.lock", "checkpoints")  # what decides the results
 # Where each result comes from: file -> notebook that writes it.
 SOURCES = {
@@ -443,7 +443,48 @@ def regime_map(rows: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(out).set_index(["variant", "flow"])
 
 
-def _verdict(interval: stats.Interval, flow: str) -> str:
+# What data_size separates (fixed with the study): effect -> (model, the model it is compared with).
+SIZE_EFFECTS = {"prior, regression": ("mlp-physical", "mlp"), "prior, flow": ("rf-physical", "rf"),
+                "generative, no prior": ("rf", "mlp"), "generative, with prior": ("rf-physical", "mlp-physical")}
+
+
+def size_effects(rows: pd.DataFrame) -> pd.DataFrame:
+    """Per training-set size and reference family: the physics prior's effect (each model with
+    the prior minus the same model without) and being generative's (each flow minus the
+    regression with the same prior), tracking RMSE in mm paired over references; the effects
+    whose models the grid lacks are left out."""
+    out = []
+    for episodes, part in rows.groupby("episodes"):
+        for effect, (model, other) in SIZE_EFFECTS.items():
+            if not {model, other} <= set(part["model"]):
+                continue  # a grid without one of them (the ci profile's)
+            for family in ("shape", "random"):
+                interval = stats.difference(part, model, other, family)
+                out.append(dict(episodes=episodes, effect=effect, family=family, difference_mm=interval.estimate,
+                                low=interval.low, high=interval.high, verdict=_verdict(interval, model, other)))
+    return pd.DataFrame(out).set_index(["episodes", "effect", "family"])
+
+
+def lambda_decision(rows: pd.DataFrame, default: float = 1.0) -> tuple[pd.DataFrame, float]:
+    """RF-FWD's consistency weight, the rule fixed before fwd_lambda ran: each weight minus the
+    default (tracking RMSE, mm, paired over references) per family; the default changes only to
+    a weight whose intervals exclude zero in its favour on both families (of several, the one
+    lowest on the random references). Returns the table and the weight chosen."""
+    weights = rows.assign(model=rows["consistency"].astype(float))
+    out = []
+    for weight in sorted(set(weights["model"]) - {default}):
+        row = dict(consistency=weight)
+        for family in ("shape", "random"):
+            interval = stats.difference(weights, weight, default, family)
+            row.update({f"{family}_mm": interval.estimate, f"{family}_low": interval.low, f"{family}_high": interval.high})
+        row["better_on_both"] = row["shape_high"] < 0 and row["random_high"] < 0
+        out.append(row)
+    table = pd.DataFrame(out).set_index("consistency")
+    better = table[table["better_on_both"]]
+    return table, float(better["random_mm"].idxmin()) if len(better) else default
+
+
+def _verdict(interval: stats.Interval, model: str, other: str = "mlp") -> str:
     if not interval.excludes_zero:
         return "no ranking"
-    return f"{LABELS[flow]} lower" if interval.high < 0 else "MLP lower"
+    return f"{LABELS[model]} lower" if interval.high < 0 else f"{LABELS[other]} lower"

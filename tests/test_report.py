@@ -118,3 +118,31 @@ def test_closed_loop_section_counts_references_worse_than_open_loop(profile):
     text = "\n".join(report.closed_loop_section(profile))
     assert "| vertical | 1 | 0 |" in text  # closed worse on the star only, learning never
     assert "| typical | 4.00 |" in text
+
+
+def test_size_effects_separate_the_prior_from_being_generative():
+    offsets = {"mlp": 0.0, "mlp-physical": -1.0, "rf": -0.5, "rf-physical": -1.5}  # prior -1, generative -0.5
+    rows = pd.DataFrame([dict(episodes=episodes, model=model, seed=seed, reference=f"{family}{r}", family=family,
+                              rmse_mm=5.0 + r + 0.1 * seed + offset)
+                         for episodes in (100, 300) for model, offset in offsets.items() for seed in range(3)
+                         for family in ("shape", "random") for r in range(3)])
+    table = report.size_effects(rows)
+    assert table.loc[(100, "prior, flow", "shape"), "difference_mm"] == pytest.approx(-1.0)
+    assert table.loc[(300, "generative, with prior", "random"), "difference_mm"] == pytest.approx(-0.5)
+    assert table.loc[(300, "generative, with prior", "random"), "verdict"] == "RF-Physical lower"
+    assert table.loc[(100, "prior, regression", "shape"), "verdict"] == "MLP-Physical lower"
+
+
+def test_lambda_decision_changes_the_default_only_when_better_on_both_families():
+    def rows(offsets):
+        return pd.DataFrame([dict(consistency=weight, model="rf-fwd", seed=seed, reference=f"{family}{r}",
+                                  family=family, rmse_mm=5.0 + r + 0.1 * seed + offsets[weight].get(family, 0.0))
+                             for weight in offsets for seed in range(3) for family in ("shape", "random")
+                             for r in range(3)])
+
+    table, chosen = report.lambda_decision(rows({0.0: {"shape": -1.0}, 0.1: {"shape": -1.0, "random": -0.5},
+                                                 0.3: {"shape": -1.0, "random": -0.8}, 1.0: {}}))
+    assert chosen == 0.3 and table.loc[0.1, "better_on_both"] and not table.loc[0.0, "better_on_both"]
+    assert table.loc[0.0, "random_mm"] == pytest.approx(0.0, abs=1e-12)
+    _, chosen = report.lambda_decision(rows({0.0: {"shape": -1.0, "random": 0.5}, 1.0: {}}))
+    assert chosen == 1.0
