@@ -38,6 +38,8 @@ SOURCES = {
     "twin_results.csv": "06_hardware_replay.ipynb", "baseline_sizes.csv": "03_baselines.ipynb",
     "design_sweep.csv": "04_rf_variants.ipynb", "twin_sensitivity.csv": "06_hardware_replay.ipynb",
     **{f"08_{name}.csv": "08_honest_table1.ipynb" for name in ("table1_ci", "table2_ci", "differences", "protocol", "speed")},
+    **{f"09_{name}.csv": "09_where_flows_win.ipynb" for name in ("regime_map", "data_size_effects",
+                                                                  "fwd_lambda_decision")},
     **{f"10_{name}.csv": "10_closed_loop.ipynb" for name in ("table3_extended", "latency", "gap_sensitivity",
                                                               "burst_breaks", "burst_revolutions", "identified")},
 }
@@ -190,7 +192,11 @@ FIGURES = [("Open-loop tracking, RF family (Circle, Heart, Rand2, Rand3)", "04_t
            ("Open against closed loop on the twin's star (camera tracks)", "10_open_closed.png"),
            ("Closed loop against camera latency", "10_latency.png"),
            ("Where the twin's loops break on the burst", "10_burst.png"),
-           ("Identified reality-gap terms against the truth", "10_identified.png")]
+           ("Identified reality-gap terms against the truth", "10_identified.png"),
+           ("Where a flow beats the MLP: flow - MLP against the measured ambiguity", "09_regime_map.png"),
+           ("Tracking RMSE against the training-set size", "09_data_size.png"),
+           ("Per-step u error and the data's conditional spread per dataset variant", "09_ambiguity.png"),
+           ("RF-FWD's consistency weight", "09_fwd_lambda.png")]
 
 
 def claims(profile: Profile) -> pd.DataFrame:
@@ -295,6 +301,67 @@ def closed_loop_section(profile: Profile) -> list[str]:
             "revolution above 10 % of L; empty: never):", "", markdown(breaks), "",
             "System identification through the camera (relative errors of E, eta, rho; motor lag in s):", "",
             markdown(identified, 3), ""]
+
+
+def regime_summary(regimes: pd.DataFrame) -> str:
+    """The regime map in words: each comparison of a flow with the MLP whose interval excludes
+    zero, by how much, and how many have no ranking (what the results page says, generated)."""
+    wins, losses, comparisons = [], [], 0
+    for (variant, flow), row in regimes.iterrows():
+        for family, unit in (("shape", "mm on the shapes"), ("random", "mm on the random references")):
+            comparisons += 1
+            text = (f"{variant}, {LABELS[flow]}: {row[f'{family}_mm']:+.2f} {unit} "
+                    f"[{row[f'{family}_low']:+.2f}, {row[f'{family}_high']:+.2f}]")
+            if row[f"{family}_high"] < 0:
+                wins.append(text)
+            elif row[f"{family}_low"] > 0:
+                losses.append(text)
+    parts = [f"Of {comparisons} comparisons of a flow with the MLP (tracking, z = 0 plans; variant x flow x family), "
+             f"the flow is lower in {len(wins)}, the MLP in {len(losses)}, and {comparisons - len(wins) - len(losses)} "
+             "have no ranking (the 95 % interval contains 0)."]
+    if wins:
+        parts.append("The flow is lower in: " + "; ".join(wins) + ".")
+    if losses:
+        parts.append("The MLP is lower in: " + "; ".join(losses) + ".")
+    return " ".join(parts)
+
+
+def _difference_text(estimate, low, high, digits: int = 2) -> pd.Series:
+    """"+d [low, high]" per row, from three aligned Series."""
+    return pd.Series([f"{d:+.{digits}f} [{lo:+.{digits}f}, {hi:+.{digits}f}]" for d, lo, hi in zip(estimate, low, high)],
+                     index=estimate.index)
+
+
+def where_flows_win_section(profile: Profile) -> list[str]:
+    """The regime map with its paragraph, what the prior and being generative each change with
+    data size, and RF-FWD's consistency weight (notebook 09)."""
+    regimes = read_result(profile, "09_regime_map.csv", index_col=[0, 1])
+    columns = {f"{family} (mm)": _difference_text(*(regimes[f"{family}_{k}"] for k in ("mm", "low", "high")))
+               for family in ("shape", "random")}
+    table = pd.DataFrame({"spread / floor (N)": [f"{a:.3f} / {b:.3f}" for a, b in
+                                                 zip(regimes["conditional_spread"], regimes["spread_floor"])],
+                          **columns, "per step (N)": _difference_text(regimes.step_N, regimes.step_low,
+                                                                      regimes.step_high, 4)}, index=regimes.index)
+    table = table.reset_index("flow").assign(flow=lambda t: t["flow"].map(LABELS))
+    effects = read_result(profile, "09_data_size_effects.csv", index_col=[0, 1, 2])
+    by_size = _difference_text(effects.difference_mm, effects.low, effects.high).unstack("family")[["shape", "random"]].reset_index("effect")
+    decision = read_result(profile, "09_fwd_lambda_decision.csv", index_col=0)
+    chosen = decision.index[decision["chosen"].astype(bool)]
+    decision_table = pd.DataFrame({f"{family} (mm)": _difference_text(*(decision[f"{family}_{k}"]
+                                                                        for k in ("mm", "low", "high")))
+                                   for family in ("shape", "random")})
+    verdict = (f"lambda = {chosen[0]:g} is better on both families, so the default changes to it" if len(chosen) else "no weight is better than lambda = 1 on both families, so "
+               "the default stays")
+    return ["## Where a flow beats regression (notebook 09)", "",
+            regime_summary(regimes), "",
+            "Each flow minus the MLP per dataset variant, with the variant's conditional spread of u and its estimator "
+            "floor: tracking RMSE paired over Table I's references (mean [95 % interval] over seeds and references) "
+            "and the per-step u error on held-out transitions (interval over seeds). Below zero the flow "
+            "is better.", "", markdown(table), "",
+            "What the physics prior and being generative each change, per training-set size (the model with minus "
+            "the model without, mm):", "", markdown(by_size), "",
+            "RF-FWD's consistency weight, each lambda minus the shipped lambda = 1 (mm); by the rule fixed before the "
+            f"study ran, {verdict}:", "", markdown(decision_table), ""]
 
 
 def design_choices(profile: Profile) -> list[str]:
@@ -469,7 +536,8 @@ def lambda_decision(rows: pd.DataFrame, default: float = 1.0) -> tuple[pd.DataFr
     """RF-FWD's consistency weight, the rule fixed before fwd_lambda ran: each weight minus the
     default (tracking RMSE, mm, paired over references) per family; the default changes only to
     a weight whose intervals exclude zero in its favour on both families (of several, the one
-    lowest on the random references). Returns the table and the weight chosen."""
+    lowest on the random references). Returns the table (``chosen`` marks the new default, if
+    any) and the weight chosen."""
     weights = rows.assign(model=rows["consistency"].astype(float))
     out = []
     for weight in sorted(set(weights["model"]) - {default}):
@@ -481,7 +549,8 @@ def lambda_decision(rows: pd.DataFrame, default: float = 1.0) -> tuple[pd.DataFr
         out.append(row)
     table = pd.DataFrame(out).set_index("consistency")
     better = table[table["better_on_both"]]
-    return table, float(better["random_mm"].idxmin()) if len(better) else default
+    chosen = float(better["random_mm"].idxmin()) if len(better) else default
+    return table.assign(chosen=table.index == chosen), chosen
 
 
 def _verdict(interval: stats.Interval, model: str, other: str = "mlp") -> str:

@@ -143,6 +143,30 @@ def test_lambda_decision_changes_the_default_only_when_better_on_both_families()
     table, chosen = report.lambda_decision(rows({0.0: {"shape": -1.0}, 0.1: {"shape": -1.0, "random": -0.5},
                                                  0.3: {"shape": -1.0, "random": -0.8}, 1.0: {}}))
     assert chosen == 0.3 and table.loc[0.1, "better_on_both"] and not table.loc[0.0, "better_on_both"]
+    assert table["chosen"].tolist() == [False, False, True]
     assert table.loc[0.0, "random_mm"] == pytest.approx(0.0, abs=1e-12)
     _, chosen = report.lambda_decision(rows({0.0: {"shape": -1.0, "random": 0.5}, 1.0: {}}))
     assert chosen == 1.0
+
+
+def test_where_flows_win_section_states_each_interval_that_excludes_zero(profile):
+    out = profile.output_dir
+    pd.DataFrame([dict(variant="paper", flow="rf", conditional_spread=0.1, spread_floor=0.1, shape_mm=0.1,
+                       shape_low=-0.2, shape_high=0.4, random_mm=0.5, random_low=0.2, random_high=0.8, step_N=0.0,
+                       step_low=-0.001, step_high=0.001),
+                  dict(variant="folded", flow="rf", conditional_spread=0.5, spread_floor=0.1, shape_mm=-2.0,
+                       shape_low=-3.0, shape_high=-1.0, random_mm=-0.1, random_low=-0.5, random_high=0.3, step_N=-0.01,
+                       step_low=-0.02, step_high=0.0)]).to_csv(out / "09_regime_map.csv", index=False)
+    pd.DataFrame([dict(episodes=100, effect="prior, flow", family=family, difference_mm=-1.0, low=-1.5, high=-0.5,
+                       verdict="RF-Physical lower") for family in ("shape", "random")]).to_csv(
+        out / "09_data_size_effects.csv", index=False)
+    pd.DataFrame([dict(consistency=0.1, shape_mm=-0.2, shape_low=-0.3, shape_high=-0.1, random_mm=0.1, random_low=-0.1,
+                       random_high=0.3, better_on_both=False, chosen=False)]).to_csv(out / "09_fwd_lambda_decision.csv",
+                                                                                       index=False)
+    text = "\n".join(report.where_flows_win_section(profile))
+    assert "Of 4 comparisons" in text and "the flow is lower in 1, the MLP in 1, and 2 have no ranking" in text
+    assert "folded, RF: -2.00 mm on the shapes [-3.00, -1.00]" in text
+    assert "paper, RF: +0.50 mm on the random references [+0.20, +0.80]" in text
+    assert "| 100 | prior, flow | -1.00 [-1.50, -0.50] | -1.00 [-1.50, -0.50] |" in text
+    assert "| folded | RF | 0.500 / 0.100 | -2.00 [-3.00, -1.00] |" in text
+    assert "so the default stays" in text
