@@ -13,6 +13,7 @@ another (for debugging). The studies themselves live in ``studies``.
 from __future__ import annotations
 
 import json
+import time
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -185,9 +186,12 @@ def _outcomes(study: str, missing, profile_name: str, device: str, workdir: Path
 
 def _row(run_cell, cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> str:
     """One cell's rows as JSON text (a list), made where the cell runs: rows that are not
-    JSON-able fail their own cell, and fresh rows read back exactly like cached ones."""
+    JSON-able fail their own cell, and fresh rows read back exactly like cached ones. Each row
+    carries the cell's wall time (``cell_seconds``, what sizes a study for a cluster)."""
+    start = time.perf_counter()
     measured = run_cell(cell, profile_name, device, workdir, key)
-    fields = {**cell, "profile": profile_name, "device": device, "key": key}
+    fields = {**cell, "profile": profile_name, "device": device, "key": key,
+              "cell_seconds": round(time.perf_counter() - start, 1)}
     rows = [measured] if isinstance(measured, dict) else list(measured)
     if clash := sorted({name for row in rows for name in row} & set(fields)):
         raise ValueError(f"run_cell returned columns {clash} that name the cell")
