@@ -316,9 +316,10 @@ def regime_summary(regimes: pd.DataFrame) -> str:
                 wins.append(text)
             elif row[f"{family}_low"] > 0:
                 losses.append(text)
+    unranked = comparisons - len(wins) - len(losses)
     parts = [f"Of {comparisons} comparisons of a flow with the MLP (tracking, z = 0 plans; variant x flow x family), "
-             f"the flow is lower in {len(wins)}, the MLP in {len(losses)}, and {comparisons - len(wins) - len(losses)} "
-             "have no ranking (the 95 % interval contains 0)."]
+             f"the flow is lower in {len(wins)}, the MLP in {len(losses)}, and {unranked} "
+             f"{'has' if unranked == 1 else 'have'} no ranking (the 95 % interval contains 0)."]
     if wins:
         parts.append("The flow is lower in: " + "; ".join(wins) + ".")
     if losses:
