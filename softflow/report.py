@@ -310,12 +310,10 @@ def regime_summary(regimes: pd.DataFrame) -> str:
     for (variant, flow), row in regimes.iterrows():
         for family, unit in (("shape", "mm on the shapes"), ("random", "mm on the random references")):
             comparisons += 1
-            text = (f"{variant}, {LABELS[flow]}: {row[f'{family}_mm']:+.2f} {unit} "
-                    f"[{row[f'{family}_low']:+.2f}, {row[f'{family}_high']:+.2f}]")
-            if row[f"{family}_high"] < 0:
-                wins.append(text)
-            elif row[f"{family}_low"] > 0:
-                losses.append(text)
+            interval = stats.Interval(*(row[f"{family}_{k}"] for k in ("mm", "low", "high")))
+            if interval.excludes_zero:
+                (wins if interval.high < 0 else losses).append(
+                    f"{variant}, {LABELS[flow]}: {interval.estimate:+.2f} {unit} [{interval.low:+.2f}, {interval.high:+.2f}]")
     unranked = comparisons - len(wins) - len(losses)
     parts = [f"Of {comparisons} comparisons of a flow with the MLP (tracking, z = 0 plans; variant x flow x family), "
              f"the flow is lower in {len(wins)}, the MLP in {len(losses)}, and {unranked} "
@@ -345,14 +343,15 @@ def where_flows_win_section(profile: Profile) -> list[str]:
                                                                       regimes.step_high, 4)}, index=regimes.index)
     table = table.reset_index("flow").assign(flow=lambda t: t["flow"].map(LABELS))
     effects = read_result(profile, "09_data_size_effects.csv", index_col=[0, 1, 2])
-    by_size = _difference_text(effects.difference_mm, effects.low, effects.high).unstack("family")[["shape", "random"]].reset_index("effect")
+    by_size = _difference_text(effects.difference_mm, effects.low, effects.high).unstack("family")
+    by_size = by_size[["shape", "random"]].reset_index("effect")
     decision = read_result(profile, "09_fwd_lambda_decision.csv", index_col=0)
     chosen = decision.index[decision["chosen"].astype(bool)]
     decision_table = pd.DataFrame({f"{family} (mm)": _difference_text(*(decision[f"{family}_{k}"]
                                                                         for k in ("mm", "low", "high")))
                                    for family in ("shape", "random")})
-    verdict = (f"lambda = {chosen[0]:g} is better on both families, so the default changes to it" if len(chosen) else "no weight is better than lambda = 1 on both families, so "
-               "the default stays")
+    verdict = (f"lambda = {chosen[0]:g} is better on both families, so the default changes to it" if len(chosen)
+               else "no weight is better than lambda = 1 on both families, so the default stays")
     return ["## Where a flow beats regression (notebook 09)", "",
             regime_summary(regimes), "",
             "Each flow minus the MLP per dataset variant, with the variant's conditional spread of u and its estimator "

@@ -46,6 +46,7 @@ def test_cached_arrays_compute_once_and_recompute_what_is_corrupt_or_invalid(tmp
     store.cached_arrays(path, compute, valid=lambda arrays: "b" in arrays)  # stale layout: rebuilt
     assert len(calls) == 3
 
+
 def test_dataset_key_follows_parameters_and_versions_not_the_name(monkeypatch):
     key = data.dataset_path(PAPER).stem
     assert data.dataset_path(PAPER, dataclasses.replace(SIM_ROBOT, name="renamed")).stem == key
