@@ -1,7 +1,7 @@
 # softflow: every result of the paper from one command.
 #   make reproduce   run every notebook (PROFILE=paper by default; PROFILE=ci for minutes)
 #   make test        unit tests + nbval of the committed notebooks (ci profile)
-#   make study       recompute every cell of the studies (notebooks 08-10) on a local Dask cluster
+#   make study       recompute every cell of the studies (notebooks 08-11) on a local Dask cluster
 SHELL := /bin/bash
 PYTHON_BASE ?= python3.11
 VENV := .venv
@@ -44,7 +44,7 @@ test: $(STAMP)
 # 07 reads every other notebook's results: it runs last. Notebook 09's paper rows are still
 # being computed (issue 15; about 4 CPU-hours, resumable with make study): until they ship in
 # figures/sweeps/, the paper run leaves it out instead of computing them all here.
-PENDING := $(if $(filter paper,$(PROFILE)),notebooks/09_where_flows_win.ipynb)
+PENDING := $(if $(filter paper,$(PROFILE)),notebooks/09_where_flows_win.ipynb notebooks/11_consistency_weight.ipynb)
 reproduce: $(STAMP)
 	mkdir -p build/notebooks/$(PROFILE)
 	for nb in $(filter-out $(LAST) $(PENDING),$(NOTEBOOKS)) $(LAST); do \

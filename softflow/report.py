@@ -38,8 +38,8 @@ SOURCES = {
     "twin_results.csv": "06_hardware_replay.ipynb", "baseline_sizes.csv": "03_baselines.ipynb",
     "design_sweep.csv": "04_rf_variants.ipynb", "twin_sensitivity.csv": "06_hardware_replay.ipynb",
     **{f"08_{name}.csv": "08_honest_table1.ipynb" for name in ("table1_ci", "table2_ci", "differences", "protocol", "speed")},
-    **{f"09_{name}.csv": "09_where_flows_win.ipynb" for name in ("regime_map", "data_size_effects",
-                                                                  "fwd_lambda_decision")},
+    **{f"09_{name}.csv": "09_where_flows_win.ipynb" for name in ("regime_map", "data_size_effects")},
+    "11_fwd_lambda_decision.csv": "11_consistency_weight.ipynb",
     **{f"10_{name}.csv": "10_closed_loop.ipynb" for name in ("table3_extended", "latency", "gap_sensitivity",
                                                               "burst_breaks", "burst_revolutions", "identified")},
 }
@@ -196,7 +196,7 @@ FIGURES = [("Open-loop tracking, RF family (Circle, Heart, Rand2, Rand3)", "04_t
            ("Where a flow beats the MLP: flow - MLP against the measured ambiguity", "09_regime_map.png"),
            ("Tracking RMSE against the training-set size", "09_data_size.png"),
            ("Per-step u error and the data's conditional spread per dataset variant", "09_ambiguity.png"),
-           ("RF-FWD's consistency weight", "09_fwd_lambda.png")]
+           ("RF-FWD's consistency weight", "11_fwd_lambda.png")]
 
 
 def claims(profile: Profile) -> pd.DataFrame:
@@ -332,8 +332,8 @@ def _difference_text(estimate, low, high, digits: int = 2) -> pd.Series:
 
 
 def where_flows_win_section(profile: Profile) -> list[str]:
-    """The regime map with its paragraph, what the prior and being generative each change with
-    data size, and RF-FWD's consistency weight (notebook 09)."""
+    """The regime map with its paragraph, and what the prior and being generative each change
+    with data size (notebook 09)."""
     regimes = read_result(profile, "09_regime_map.csv", index_col=[0, 1])
     columns = {f"{family} (mm)": _difference_text(*(regimes[f"{family}_{k}"] for k in ("mm", "low", "high")))
                for family in ("shape", "random")}
@@ -345,13 +345,6 @@ def where_flows_win_section(profile: Profile) -> list[str]:
     effects = read_result(profile, "09_data_size_effects.csv", index_col=[0, 1, 2])
     by_size = _difference_text(effects.difference_mm, effects.low, effects.high).unstack("family")
     by_size = by_size[["shape", "random"]].reset_index("effect")
-    decision = read_result(profile, "09_fwd_lambda_decision.csv", index_col=0)
-    chosen = decision.index[decision["chosen"].astype(bool)]
-    decision_table = pd.DataFrame({f"{family} (mm)": _difference_text(*(decision[f"{family}_{k}"]
-                                                                        for k in ("mm", "low", "high")))
-                                   for family in ("shape", "random")})
-    verdict = (f"lambda = {chosen[0]:g} is better on both families, so the default changes to it" if len(chosen)
-               else "no weight is better than lambda = 1 on both families, so the default stays")
     return ["## Where a flow beats regression (notebook 09)", "",
             regime_summary(regimes), "",
             "Each flow minus the MLP per dataset variant, with the variant's conditional spread of u and its estimator "
@@ -359,9 +352,20 @@ def where_flows_win_section(profile: Profile) -> list[str]:
             "and the per-step u error on held-out transitions (interval over seeds). Below zero the flow "
             "is better.", "", markdown(table), "",
             "What the physics prior and being generative each change, per training-set size (the model with minus "
-            "the model without, mm):", "", markdown(by_size), "",
-            "RF-FWD's consistency weight, each lambda minus the shipped lambda = 1 (mm); by the rule fixed before the "
-            f"study ran, {verdict}:", "", markdown(decision_table), ""]
+            "the model without, mm):", "", markdown(by_size), ""]
+
+
+def consistency_weight_section(profile: Profile) -> list[str]:
+    """RF-FWD's consistency weight against the shipped lambda = 1, and the rule's choice (notebook 11)."""
+    decision = read_result(profile, "11_fwd_lambda_decision.csv", index_col=0)
+    chosen = decision.index[decision["chosen"].astype(bool)]
+    table = pd.DataFrame({f"{family} (mm)": _difference_text(*(decision[f"{family}_{k}"] for k in ("mm", "low", "high")))
+                          for family in ("shape", "random")})
+    verdict = (f"lambda = {chosen[0]:g} is better on both families, so the default changes to it" if len(chosen)
+               else "no weight is better than lambda = 1 on both families, so the default stays")
+    return ["## RF-FWD's consistency weight (notebook 11)", "",
+            "Each lambda minus the shipped lambda = 1 (mm, paired over Table I's references); by the rule fixed before "
+            f"the study ran, {verdict}:", "", markdown(table), ""]
 
 
 def design_choices(profile: Profile) -> list[str]:

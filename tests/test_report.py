@@ -160,13 +160,21 @@ def test_where_flows_win_section_states_each_interval_that_excludes_zero(profile
     pd.DataFrame([dict(episodes=100, effect="prior, flow", family=family, difference_mm=-1.0, low=-1.5, high=-0.5,
                        verdict="RF-Physical lower") for family in ("shape", "random")]).to_csv(
         out / "09_data_size_effects.csv", index=False)
-    pd.DataFrame([dict(consistency=0.1, shape_mm=-0.2, shape_low=-0.3, shape_high=-0.1, random_mm=0.1, random_low=-0.1,
-                       random_high=0.3, better_on_both=False, chosen=False)]).to_csv(out / "09_fwd_lambda_decision.csv",
-                                                                                       index=False)
     text = "\n".join(report.where_flows_win_section(profile))
     assert "Of 4 comparisons" in text and "the flow is lower in 1, the MLP in 1, and 2 have no ranking" in text
     assert "folded, RF: -2.00 mm on the shapes [-3.00, -1.00]" in text
     assert "paper, RF: +0.50 mm on the random references [+0.20, +0.80]" in text
     assert "| 100 | prior, flow | -1.00 [-1.50, -0.50] | -1.00 [-1.50, -0.50] |" in text
     assert "| folded | RF | 0.500 / 0.100 | -2.00 [-3.00, -1.00] |" in text
-    assert "so the default stays" in text
+
+
+def test_consistency_weight_section_states_the_rules_choice(profile):
+    decision = pd.DataFrame([dict(consistency=weight, shape_mm=-0.2, shape_low=-0.3, shape_high=-0.1, random_mm=random,
+                                  random_low=random - 0.1, random_high=random + 0.1, better_on_both=random < -0.1,
+                                  chosen=chosen) for weight, random, chosen in ((0.1, 0.1, False), (0.3, -0.4, True))])
+    decision.to_csv(profile.output_dir / "11_fwd_lambda_decision.csv", index=False)
+    text = "\n".join(report.consistency_weight_section(profile))
+    assert "lambda = 0.3 is better on both families, so the default changes to it" in text
+    assert "| 0.1 | -0.20 [-0.30, -0.10] | +0.10 [+0.00, +0.20] |" in text
+    decision.assign(chosen=False).to_csv(profile.output_dir / "11_fwd_lambda_decision.csv", index=False)
+    assert "so the default stays" in "\n".join(report.consistency_weight_section(profile))
