@@ -5,6 +5,7 @@ Lengths arrive in SI units and are drawn in mm.
 from __future__ import annotations
 
 import matplotlib.pyplot as plt
+from matplotlib.ticker import FuncFormatter
 import numpy as np
 
 MM = 1e3  # m -> mm for axes
@@ -419,6 +420,8 @@ def regime_map(table, labels: dict):
     for a, unit in ((ax, "tracking RMSE [mm]"), (ax_step, "per-step u error [N]")):
         a.axhline(0, color="k", lw=0.8)
         a.set(xlabel="conditional spread / estimator floor (1: none measurable)", ylabel=f"flow - MLP, {unit}")
+    ax.set_yscale("symlog", linthresh=1.0)  # tenths of a mm and tens of mm on one axis; linear within 1 mm
+    ax.yaxis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:g}"))
     ax.legend(fontsize=7)
     fig.tight_layout()
     return fig
