@@ -162,8 +162,8 @@ def test_where_flows_win_section_states_each_interval_that_excludes_zero(profile
         out / "09_data_size_effects.csv", index=False)
     text = "\n".join(report.where_flows_win_section(profile))
     assert "Of 4 comparisons" in text and "the flow is lower in 1, the MLP in 1, and 2 have no ranking" in text
-    assert "folded, RF: -2.00 mm on the shapes [-3.00, -1.00]" in text
-    assert "paper, RF: +0.50 mm on the random references [+0.20, +0.80]" in text
+    assert ("paper: the MLP lower in 1 (on the random references, by 0.50 mm), 1 without ranking; "
+            "folded: the flow lower in 1 (on the shapes, by 2.00 mm)") in text
     assert "| 100 | prior, flow | -1.00 [-1.50, -0.50] | -1.00 [-1.50, -0.50] |" in text
     assert "| folded | RF | 0.500 / 0.100 | -2.00 [-3.00, -1.00] |" in text
 
