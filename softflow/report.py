@@ -39,7 +39,7 @@ SOURCES = {
     "design_sweep.csv": "04_rf_variants.ipynb", "twin_sensitivity.csv": "06_hardware_replay.ipynb",
     **{f"08_{name}.csv": "08_honest_table1.ipynb" for name in ("table1_ci", "table2_ci", "differences", "protocol", "speed")},
     **{f"09_{name}.csv": "09_where_flows_win.ipynb" for name in ("regime_map", "data_size_effects")},
-    "11_fwd_lambda_decision.csv": "11_consistency_weight.ipynb",
+    **{f"11_{name}.csv": "11_consistency_weight.ipynb" for name in ("fwd_lambda_decision", "fwd_lambda_diagnostics")},
     **{f"10_{name}.csv": "10_closed_loop.ipynb" for name in ("table3_extended", "latency", "gap_sensitivity",
                                                               "burst_breaks", "burst_revolutions", "identified")},
 }
@@ -371,8 +371,16 @@ def where_flows_win_section(profile: Profile) -> list[str]:
             "the model without, mm):", "", markdown(by_size), ""]
 
 
-def consistency_weight_section(profile: Profile) -> list[str]:
-    """RF-FWD's consistency weight against the shipped lambda = 1, and the rule's choice (notebook 11)."""
+def consistency_weight_section(profile: Profile, taus=(0.05, 0.5)) -> list[str]:
+    """RF-FWD's consistency weight against the shipped lambda = 1, the rule's choice, and what
+    the term sees per weight at a small and a middle tau (notebook 11)."""
+    diagnostics = read_result(profile, "11_fwd_lambda_diagnostics.csv", index_col=0)
+    seen = pd.DataFrame({"inverse u error (N)": diagnostics.u_rmse_test,
+                         "surrogate one-step tip error (mm)": diagnostics.forward_step_mm,
+                         **{f"u error at tau = {tau:g}, one step / Euler (N)": [
+                             f"{a:.3f} / {b:.3f}" for a, b in zip(diagnostics[f"one_step_u_error_tau{tau:g}"],
+                                                                  diagnostics[f"euler_u_error_tau{tau:g}"])]
+                            for tau in taus}}, index=diagnostics.index)
     decision = read_result(profile, "11_fwd_lambda_decision.csv", index_col=0)
     chosen = decision.index[decision["chosen"].astype(bool)]
     table = pd.DataFrame({f"{family} (mm)": _difference_text(*(decision[f"{family}_{k}"] for k in ("mm", "low", "high")))
@@ -381,7 +389,10 @@ def consistency_weight_section(profile: Profile) -> list[str]:
                else "no weight is better than lambda = 1 on both families, so the default stays")
     return ["## RF-FWD's consistency weight (notebook 11)", "",
             "Each lambda minus the shipped lambda = 1 (mm, paired over Table I's references); by the rule fixed before "
-            f"the study ran, {verdict}:", "", markdown(table), ""]
+            f"the study ran, {verdict}:", "", markdown(table), "",
+            "What the term sees on held-out transitions, per lambda (mean over seeds): the inverse's per-step u error, "
+            "the frozen forward surrogate's one-step error, and the u error of the loss's one-step endpoint estimate "
+            "xi_tau + (1 - tau) v beside a short Euler rollout from the same tau:", "", markdown(seen, 4), ""]
 
 
 def design_choices(profile: Profile) -> list[str]:

@@ -173,7 +173,12 @@ def test_consistency_weight_section_states_the_rules_choice(profile):
                                   random_low=random - 0.1, random_high=random + 0.1, better_on_both=random < -0.1,
                                   chosen=chosen) for weight, random, chosen in ((0.1, 0.1, False), (0.3, -0.4, True))])
     decision.to_csv(profile.output_dir / "11_fwd_lambda_decision.csv", index=False)
+    pd.DataFrame([dict(consistency=weight, u_rmse_test=0.01 * weight, forward_step_mm=0.2,
+                       **{f"{kind}_u_error_tau{tau:g}": 0.1 * tau + (0.5 if kind == "one_step" else 0.0)
+                          for kind in ("one_step", "euler") for tau in (0.05, 0.5)})
+                  for weight in (0.1, 0.3, 1.0)]).to_csv(profile.output_dir / "11_fwd_lambda_diagnostics.csv", index=False)
     text = "\n".join(report.consistency_weight_section(profile))
+    assert "| 0.3 | 0.0030 | 0.2000 | 0.505 / 0.005 | 0.550 / 0.050 |" in text
     assert "lambda = 0.3 is better on both families, so the default changes to it" in text
     assert "| 0.1 | -0.20 [-0.30, -0.10] | +0.10 [+0.00, +0.20] |" in text
     decision.assign(chosen=False).to_csv(profile.output_dir / "11_fwd_lambda_decision.csv", index=False)
