@@ -363,6 +363,11 @@ def against_data_size(summary, labels: dict):
     for ax, family in zip(axes[0], families):
         band_lines(ax, summary[summary["family"] == family], "episodes", "model", lambda model: labels.get(model, model))
         ax.set(xscale="log", yscale="log", xlabel="training episodes", ylabel="RMSE [mm]", title=f"{family} references")
+        for formatter in (ax.yaxis.set_major_formatter, ax.yaxis.set_minor_formatter):  # 0.6, not 6 x 10^-1
+            formatter(FuncFormatter(lambda value, _: f"{value:g}"))
+        sizes = sorted(set(summary["episodes"]))
+        ax.set_xticks(sizes, [f"{size:g}" for size in sizes], minor=False)
+        ax.xaxis.set_minor_formatter(FuncFormatter(lambda *_: ""))
     axes[0, 0].legend(fontsize=7)
     fig.tight_layout()
     return fig
