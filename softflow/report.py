@@ -39,9 +39,9 @@ SOURCES = {
     "design_sweep.csv": "04_rf_variants.ipynb", "twin_sensitivity.csv": "06_hardware_replay.ipynb",
     **{f"08_{name}.csv": "08_honest_table1.ipynb" for name in ("table1_ci", "table2_ci", "differences", "protocol", "speed")},
     **{f"09_{name}.csv": "09_where_flows_win.ipynb" for name in ("regime_map", "data_size_effects")},
-    **{f"11_{name}.csv": "11_consistency_weight.ipynb" for name in ("fwd_lambda_decision", "fwd_lambda_diagnostics")},
     **{f"10_{name}.csv": "10_closed_loop.ipynb" for name in ("table3_extended", "latency", "gap_sensitivity",
                                                               "burst_breaks", "burst_revolutions", "identified")},
+    **{f"11_{name}.csv": "11_consistency_weight.ipynb" for name in ("fwd_lambda_decision", "fwd_lambda_diagnostics")},
 }
 
 # The paper's numbers (Tables I-IV of the paper in ../shared/paper).
