@@ -183,3 +183,14 @@ def test_consistency_weight_section_states_the_rules_choice(profile):
     assert "| 0.1 | -0.20 [-0.30, -0.10] | +0.10 [+0.00, +0.20] |" in text
     decision.assign(chosen=False).to_csv(profile.output_dir / "11_fwd_lambda_decision.csv", index=False)
     assert "so the default stays" in "\n".join(report.consistency_weight_section(profile))
+
+
+def test_regime_summary_gives_the_range_of_each_sides_wins_per_variant():
+    def row(flow, shape, random):  # intervals of half-width 0.5 around each difference
+        return dict(variant="folded", flow=flow, **{f"{family}_{k}": value + offset for family, value in
+                                                    (("shape", shape), ("random", random))
+                                                    for k, offset in (("mm", 0.0), ("low", -0.5), ("high", 0.5))})
+    regimes = pd.DataFrame([row("rf", -60.0, -3.0), row("rf-fwd", -65.0, 2.0)]).set_index(["variant", "flow"])
+    text = report.regime_summary(regimes)
+    assert "the flow is lower in 3, the MLP in 1, and 0 have no ranking" in text
+    assert "folded: the flow lower in 3 (on both families, by 3.00-65.00 mm), the MLP lower in 1 (on the random" in text
