@@ -320,7 +320,8 @@ def regime_summary(regimes: pd.DataFrame) -> str:
         if differences["none"]:
             parts.append(f"{len(differences['none'])} without ranking")
         clauses.append(f"{variant}: " + ", ".join(parts))
-        totals = {side: totals[side] + len(d) for side, d in differences.items()}
+        for side, d in differences.items():
+            totals[side] += len(d)
     comparisons = sum(totals.values())
     return (f"Of {comparisons} comparisons of a flow with the MLP (tracking RMSE, z = 0 plans; variant x flow x "
             f"reference family), the flow is lower in {totals['flow']}, the MLP in {totals['MLP']}, and "
@@ -347,15 +348,19 @@ def _difference_text(estimate, low, high, digits: int = 2) -> pd.Series:
                      index=estimate.index)
 
 
+def _family_differences(frame: pd.DataFrame) -> dict:
+    """"<family> (mm)" -> "+d [low, high]" per row, from the columns <family>_mm, _low, _high."""
+    return {f"{family} (mm)": _difference_text(*(frame[f"{family}_{k}"] for k in ("mm", "low", "high")))
+            for family in ("shape", "random")}
+
+
 def where_flows_win_section(profile: Profile) -> list[str]:
     """The regime map with its paragraph, and what the prior and being generative each change
     with data size (notebook 09)."""
     regimes = read_result(profile, "09_regime_map.csv", index_col=[0, 1])
-    columns = {f"{family} (mm)": _difference_text(*(regimes[f"{family}_{k}"] for k in ("mm", "low", "high")))
-               for family in ("shape", "random")}
     table = pd.DataFrame({"spread / floor (N)": [f"{a:.3f} / {b:.3f}" for a, b in
                                                  zip(regimes["conditional_spread"], regimes["spread_floor"])],
-                          **columns, "per step (N)": _difference_text(regimes.step_N, regimes.step_low,
+                          **_family_differences(regimes), "per step (N)": _difference_text(regimes.step_N, regimes.step_low,
                                                                       regimes.step_high, 4)}, index=regimes.index)
     table = table.reset_index("flow").assign(flow=lambda t: t["flow"].map(LABELS))
     effects = read_result(profile, "09_data_size_effects.csv", index_col=[0, 1, 2])
@@ -383,8 +388,7 @@ def consistency_weight_section(profile: Profile, taus=(0.05, 0.5)) -> list[str]:
                             for tau in taus}}, index=diagnostics.index)
     decision = read_result(profile, "11_fwd_lambda_decision.csv", index_col=0)
     chosen = decision.index[decision["chosen"].astype(bool)]
-    table = pd.DataFrame({f"{family} (mm)": _difference_text(*(decision[f"{family}_{k}"] for k in ("mm", "low", "high")))
-                          for family in ("shape", "random")})
+    table = pd.DataFrame(_family_differences(decision))
     verdict = (f"lambda = {chosen[0]:g} is better on both families, so the default changes to it" if len(chosen)
                else "no weight is better than lambda = 1 on both families, so the default stays")
     return ["## RF-FWD's consistency weight (notebook 11)", "",
