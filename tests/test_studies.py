@@ -1,0 +1,23 @@
+"""The studies' shared measurements (``softflow.studies``), on the small test dataset."""
+from dataclasses import replace
+
+import numpy as np
+
+from softflow import control, studies
+
+
+def test_held_out_error_is_measured_beyond_the_workspace_and_leaves_the_controller_checking(dataset, trained):
+    controller = control.Controller(trained("mlp")[0], "mlp")
+    far = dataset.states.copy()
+    far[dataset.test, :, 0] += 1.0  # held-out episodes a metre off in x: extrapolation, measured
+    shifted = replace(dataset, states=far)
+
+    planned, error = studies.held_out_plan(controller, shifted)
+
+    assert planned.shape == dataset.u[dataset.test].shape and np.isfinite(planned).all()
+    assert np.abs(planned).max() <= controller.u_limit  # the clipped plan is judged
+    by_hand = np.sqrt(np.mean([np.mean((p - u) ** 2) for p, u in zip(planned, dataset.u[dataset.test])]))
+    np.testing.assert_allclose(error, by_hand, rtol=1e-12)
+    assert controller.workspace_margin == control.WORKSPACE_MARGIN  # the user's controller still refuses them
+    np.testing.assert_array_equal(studies.held_out_plan(controller, dataset)[0],
+                                  controller.plan(dataset.states[dataset.test]))
