@@ -369,10 +369,8 @@ def _consistency_diagnostics(model, forward, dataset: data.Dataset, points: int)
     error (mm of tip position), and at each tau of DIAGNOSTIC_TAUS the u error (N, RMS per
     input) and the consistency residual (normalised increment, RMS) of the loss's one-step
     endpoint estimate xi_tau + (1 - tau) v against a DIAGNOSTIC_EULER-step Euler rollout from tau."""
-    held_out = [a.reshape(-1, a.shape[-1]) for a in dataset.transitions(dataset.test)]  # x_t, x_t+1, u
     rng = np.random.default_rng(0)
-    pick = rng.choice(len(held_out[0]), min(points, len(held_out[0])), replace=False)
-    x, x_next, u = (torch.as_tensor(a[pick], dtype=torch.float32) for a in held_out)
+    x, x_next, u = _diagnostic_transitions(dataset, points, rng)
     window = torch.stack([x, x_next], 1)
     out = {}
     with torch.inference_mode():
@@ -394,6 +392,22 @@ def _consistency_diagnostics(model, forward, dataset: data.Dataset, points: int)
                 out[f"{label}_residual_tau{tau_value:g}"] = float(
                     torch.sqrt(torch.mean((forward.increment(x, u_hat) - target) ** 2)))
     return out
+
+
+def consistency_floor(forward, dataset: data.Dataset, points: int) -> float:
+    """The consistency residual (normalised increment, RMS) at the true u on the diagnostics'
+    held-out transitions: the surrogate's own one-step error, what the term reports even for a
+    perfect inverse. Only the residual above it carries information about u."""
+    x, x_next, u = _diagnostic_transitions(dataset, points, np.random.default_rng(0))
+    with torch.inference_mode():
+        return float(torch.sqrt(torch.mean((forward.increment(x, u) - forward.delta_norm.normalize(x_next - x)) ** 2)))
+
+
+def _diagnostic_transitions(dataset: data.Dataset, points: int, rng: np.random.Generator):
+    """``points`` held-out transitions (x_t, x_t+1, u) drawn with ``rng``, as float tensors."""
+    held_out = [a.reshape(-1, a.shape[-1]) for a in dataset.transitions(dataset.test)]
+    pick = rng.choice(len(held_out[0]), min(points, len(held_out[0])), replace=False)
+    return tuple(torch.as_tensor(a[pick], dtype=torch.float32) for a in held_out)
 
 
 # ---------------------------------------------------------------------------- closed loop

@@ -2,6 +2,7 @@
 from dataclasses import replace
 
 import numpy as np
+import torch
 
 from softflow import control, studies
 
@@ -21,3 +22,16 @@ def test_held_out_error_is_measured_beyond_the_workspace_and_leaves_the_controll
     assert controller.workspace_margin == control.WORKSPACE_MARGIN  # the user's controller still refuses them
     np.testing.assert_array_equal(studies.held_out_plan(controller, dataset)[0],
                                   controller.plan(dataset.states[dataset.test]))
+
+
+def test_the_consistency_floor_is_the_surrogates_own_error_at_the_true_u(dataset, trained):
+    forward, _ = trained("forward")
+    floor = studies.consistency_floor(forward, dataset, points=500)
+
+    x, x_next, u = studies._diagnostic_transitions(dataset, 500, np.random.default_rng(0))
+    assert len(x) == 500
+    with torch.inference_mode():
+        loss = forward.compute_loss(torch.stack([x, x_next], 1), u)
+        wrong = forward.increment(x, u + 0.5) - forward.delta_norm.normalize(x_next - x)
+    np.testing.assert_allclose(floor, np.sqrt(float(loss)), rtol=1e-5)
+    assert floor < float(torch.sqrt(torch.mean(wrong**2)))  # a wrong u misses by more than the surrogate does
