@@ -18,7 +18,6 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 import torch
 from dask.system import CPU_COUNT
@@ -126,7 +125,7 @@ def run_sweep(study: str, profile_name: str, *, client: Client | None, device: s
             _write_tables(rows, keys, csv, shipped_csv, shipped)  # as they come: a long sweep can be committed
         bar.update(1)
     bar.close()
-    table = _write_tables(rows, keys, csv, shipped_csv, shipped)
+    table = _write_tables(rows, keys, csv, None if shipped else shipped_csv, shipped)  # new rows shipped as they came
     return SweepResult(csv, table, failures, cached=len(cells) - len(missing), computed=len(missing))
 
 
@@ -152,13 +151,13 @@ def _cached_rows(path: Path) -> list[dict] | None:
 
 def _shipped_rows(csv: Path, keys) -> dict:
     """{key: rows} of the shipped CSV's cells that are in ``keys`` (rows of an older grid or
-    version are left out); {} without the file."""
+    version are left out), every row with all of the CSV's columns in its order, so that the
+    rows written back keep it; {} without the file."""
     if not csv.exists():
         return {}
     table = pd.read_csv(csv)
     table = table[table["key"].isin(keys)]
-    return {key: [{k: v for k, v in row.items() if not (isinstance(v, float) and np.isnan(v))}
-                  for row in group.to_dict("records")] for key, group in table.groupby("key", sort=False)}
+    return {key: group.to_dict("records") for key, group in table.groupby("key", sort=False)}
 
 
 def _outcomes(study: str, missing, profile_name: str, device: str, workdir: Path, client: Client | None):

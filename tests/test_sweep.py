@@ -134,6 +134,30 @@ def test_cells_with_several_rows_ship_and_read_back_from_the_shipped_csv(tmp_pat
     pd.testing.assert_frame_equal(pd.read_csv(shipped), first.rows)  # not replaced by nothing
 
 
+def _gappy_run(cell, profile_name, device, workdir, key):  # the first row lacks a middle column, as Table I's shapes do
+    return [dict(reference="R0", mae=float("nan"), score=0.1 + cell["seed"]),
+            dict(reference="R1", mae=1 / 3, score=2 / 3 + cell["seed"])]
+
+
+def test_reading_the_shipped_rows_leaves_the_shipped_csv_as_it_was(tmp_path, monkeypatch):
+    """make reproduce on a fresh clone reads the shipped rows: the committed CSV must not change,
+    not even in its column order or the last digit of a float."""
+    monkeypatch.setattr(sweep, "SWEEPS_DIR", tmp_path / "cache")
+    monkeypatch.setattr(sweep, "SHIPPED_RESULTS", tmp_path / "shipped")
+    monkeypatch.setitem(sweep.STUDIES, "gappy", sweep.Study(_per_reference_cells, _gappy_run))
+    sweep.run_sweep("gappy", "paper", client=None, device="cpu", progress=False)
+    shipped = tmp_path / "shipped" / "gappy-paper.csv"
+    committed = shipped.read_bytes()
+    assert committed.splitlines()[0].endswith(b",reference,mae,score")
+
+    for cached in (tmp_path / "cache" / "gappy").glob("*.json"):
+        cached.unlink()  # a fresh clone: only the shipped CSV
+    monkeypatch.setitem(sweep.STUDIES, "gappy", sweep.Study(_per_reference_cells, _must_not_run))
+    fresh = sweep.run_sweep("gappy", "paper", client=None, device="cpu", progress=False)
+    assert fresh.computed == 0 and shipped.read_bytes() == committed
+    assert (tmp_path / "cache" / "gappy-paper.csv").read_bytes() == committed
+
+
 def test_bad_input_is_refused():
     with pytest.raises(ValueError, match="study"):
         sweep.run_sweep("no-such-study", "ci", client=None, device="cpu")
