@@ -168,15 +168,31 @@ def test_where_flows_win_section_states_each_interval_that_excludes_zero(profile
     assert "| folded | RF | 0.500 / 0.100 | -2.00 [-3.00, -1.00] |" in text
 
 
+def diagnostics(weights):
+    """notebook 11's per-lambda diagnostics, made up: u error 0.01 lambda, one-step estimates
+    0.5 N worse than Euler, residuals twice the floor of 0.04."""
+    return pd.DataFrame([dict(consistency=weight, u_rmse_test=0.01 * weight, forward_step_mm=0.2, residual_floor=0.04,
+                              **{f"{kind}_u_error_tau{tau:g}": 0.1 * tau + (0.5 if kind == "one_step" else 0.0)
+                                 for kind in ("one_step", "euler") for tau in (0.05, 0.5)},
+                              **{f"one_step_residual_tau{tau:g}": 0.08 for tau in (0.05, 0.5)})
+                         for weight in weights]).set_index("consistency")
+
+
+def test_consistency_term_summary_says_what_the_term_sees(profile):
+    text = report.consistency_term_summary(diagnostics(weights=(0.0, 0.1, 1.0)))
+    assert "with lambda = 0.10-1.00 the inverse's per-step u error on held-out transitions is 0.0010-0.0100 N, " \
+           "against 0.0000 N without the term (RF)" in text
+    assert "a residual of 0.0400" in text and "its one-step tip error is 0.200 mm" in text
+    assert "the estimates' residual at tau = 0.5 is 0.0800: 50 % of what the term sees" in text
+    assert "At tau = 0.05 the one-step estimate misses u by 0.5050 N, 101.0 times a short Euler rollout" in text
+
+
 def test_consistency_weight_section_states_the_rules_choice(profile):
     decision = pd.DataFrame([dict(consistency=weight, shape_mm=-0.2, shape_low=-0.3, shape_high=-0.1, random_mm=random,
                                   random_low=random - 0.1, random_high=random + 0.1, better_on_both=random < -0.1,
                                   chosen=chosen) for weight, random, chosen in ((0.1, 0.1, False), (0.3, -0.4, True))])
     decision.to_csv(profile.output_dir / "11_fwd_lambda_decision.csv", index=False)
-    pd.DataFrame([dict(consistency=weight, u_rmse_test=0.01 * weight, forward_step_mm=0.2,
-                       **{f"{kind}_u_error_tau{tau:g}": 0.1 * tau + (0.5 if kind == "one_step" else 0.0)
-                          for kind in ("one_step", "euler") for tau in (0.05, 0.5)})
-                  for weight in (0.1, 0.3, 1.0)]).to_csv(profile.output_dir / "11_fwd_lambda_diagnostics.csv", index=False)
+    diagnostics(weights=(0.0, 0.1, 0.3, 1.0)).to_csv(profile.output_dir / "11_fwd_lambda_diagnostics.csv")
     text = "\n".join(report.consistency_weight_section(profile))
     assert "| 0.3 | 0.0030 | 0.2000 | 0.505 / 0.005 | 0.550 / 0.050 |" in text
     assert "lambda = 0.3 is better on both families, so the default changes to it" in text
