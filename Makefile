@@ -41,14 +41,10 @@ test: $(STAMP)
 	$(PY) -m pytest $(LAST) $(NBVAL) -p no:cacheprovider; last=$$?; \
 	exit $$(( a || b || last ))
 
-# 07 reads every other notebook's results: it runs last. Notebook 11's paper rows are still
-# being computed (issue 15; nine RF-FWD trainings at the full budget, about 2.5 hours on two
-# cores, resumable with make study): until they ship in figures/sweeps/, the paper run leaves
-# it out instead of computing them all here.
-PENDING := $(if $(filter paper,$(PROFILE)),notebooks/11_consistency_weight.ipynb)
+# 07 reads every other notebook's results: it runs last.
 reproduce: $(STAMP)
 	mkdir -p build/notebooks/$(PROFILE)
-	for nb in $(filter-out $(LAST) $(PENDING),$(NOTEBOOKS)) $(LAST); do \
+	for nb in $(filter-out $(LAST),$(NOTEBOOKS)) $(LAST); do \
 		echo "== $$nb ($(PROFILE))"; \
 		$(VENV)/bin/papermill --cwd notebooks -p profile $(PROFILE) "$$nb" "build/notebooks/$(PROFILE)/$$(basename $$nb)" || exit 1; \
 	done
