@@ -180,11 +180,15 @@ def diagnostics(weights):
 
 def test_consistency_term_summary_says_what_the_term_sees(profile):
     text = report.consistency_term_summary(diagnostics(weights=(0.0, 0.1, 1.0)))
-    assert "with lambda = 0.10-1.00 the inverse's per-step u error on held-out transitions is 0.0010-0.0100 N, " \
+    assert "with lambda = 0.1-1 the inverse's per-step u error on held-out transitions is 0.0010-0.0100 N, " \
            "against 0.0000 N without the term (RF)" in text
     assert "a residual of 0.0400" in text and "its one-step tip error is 0.200 mm" in text
-    assert "the estimates' residual at tau = 0.5 is 0.0800: 50 % of what the term sees" in text
+    assert "the estimates' residual at tau = 0.5 is 2.00 times that. At tau = 0.05" in text
     assert "At tau = 0.05 the one-step estimate misses u by 0.5050 N, 101.0 times a short Euler rollout" in text
+    suited = diagnostics(weights=(0.0, 0.3)).assign(**{"one_step_residual_tau0.5": [0.05, 0.03]})
+    text = report.consistency_term_summary(suited)
+    assert "with lambda = 0.3 the inverse's" in text
+    assert "is 0.75-1.25 times that (below 1: a wrong u that suits the surrogate's own error scores better" in text
 
 
 def test_consistency_weight_section_states_the_rules_choice(profile):
