@@ -402,24 +402,24 @@ def consistency_weight_section(profile: Profile, taus=(0.05, 0.5)) -> list[str]:
 
 def consistency_term_summary(diagnostics: pd.DataFrame, small: float = 0.05, middle: float = 0.5) -> str:
     """What RF-FWD's consistency term does, in words generated from notebook 11's diagnostics
-    (indexed by lambda): whether it changes the inverse's per-step error, how the residual it
-    penalises compares with the surrogate's own error, and how crude the estimate it judges is."""
-    weighted, rf = diagnostics[diagnostics.index > 0], diagnostics.loc[0.0]
-    weights = sorted({f"{weight:g}" for weight in (weighted.index.min(), weighted.index.max())}, key=float)
+    (indexed by lambda, 0 = RF): the inverse's per-step error per weight, the residual the term
+    penalises against the surrogate's own error, and how crude the estimate it judges is."""
+    weighted, rf, strongest = diagnostics[diagnostics.index > 0], diagnostics.loc[0.0], diagnostics.index.max()
     floor = diagnostics["residual_floor"].iloc[0]
     ratio = diagnostics[f"one_step_residual_tau{middle:g}"] / floor
     one_step, euler = diagnostics[f"one_step_u_error_tau{small:g}"], diagnostics[f"euler_u_error_tau{small:g}"]
-    below = (" (below 1: a wrong u that suits the surrogate's own error scores better than the true u)"
+    below = (" (below 1: the flow's estimate suits the surrogate's own error better than the true u does)"
              if ratio.min() < 1 else "")
-    return (f"What the term does here: with lambda = {'-'.join(weights)} the inverse's per-step u error on held-out "
-            f"transitions is {_range_text(weighted.u_rmse_test, 4)} N, against {rf.u_rmse_test:.4f} N without the "
-            f"term (RF). The term penalises the frozen surrogate's miss for the one-step estimate of u; at the true u "
-            f"the surrogate already misses by a residual of {floor:.4f} (normalised increment, RMS; its one-step tip "
-            f"error is {_range_text(diagnostics.forward_step_mm, 3)} mm), and the estimates' residual at tau = "
-            f"{middle:g} is {_range_text(ratio, 2)} times that{below}. At tau = {small:g} the one-step estimate misses "
-            f"u by {_range_text(one_step, 4)} N, {_range_text(one_step / euler, 1)} times a short Euler rollout from "
-            f"the same tau ({_range_text(euler, 4)} N): early on the path the term judges a cruder u than the flow's "
-            f"own sampler gives.")
+    return (f"What the term does here: the inverse's per-step u error on held-out transitions is {rf.u_rmse_test:.4f} N "
+            f"without the term (RF) and {' / '.join(f'{e:.4f}' for e in weighted.u_rmse_test)} N at lambda = "
+            f"{' / '.join(f'{w:g}' for w in weighted.index)}. The term penalises the frozen surrogate's miss for the "
+            f"one-step estimate of u; at the true u the surrogate already misses by a residual of {floor:.4f} "
+            f"(normalised increment, RMS; its one-step tip error is {_range_text(diagnostics.forward_step_mm, 3)} mm). "
+            f"The estimate's residual at tau = {middle:g} is {ratio.loc[0.0]:.2f} times that without the term and "
+            f"{ratio.loc[strongest]:.2f} times at lambda = {strongest:g}{below}. At tau = {small:g} the one-step "
+            f"estimate misses u by {_range_text(one_step, 4)} N, {_range_text(one_step / euler, 1)} times a short Euler "
+            f"rollout from the same tau ({_range_text(euler, 4)} N): early on the path the term judges a cruder u than "
+            f"the flow's own sampler gives.")
 
 
 def design_choices(profile: Profile) -> list[str]:
