@@ -11,7 +11,7 @@ PROFILE ?= paper
 BENCH_PROFILE ?= ci
 NOTEBOOKS := $(sort $(wildcard notebooks/[0-9]*.ipynb))
 
-.PHONY: venv test reproduce study bench lab clean lock
+.PHONY: venv test lint reproduce study bench lab clean lock
 
 venv: $(STAMP)
 
@@ -33,13 +33,20 @@ LANE_A := notebooks/06_hardware_replay.ipynb notebooks/10_closed_loop.ipynb
 LANE_B := $(filter-out $(LANE_A) $(LAST),$(NOTEBOOKS))
 test: export OMP_NUM_THREADS = 1
 test: export OPENBLAS_NUM_THREADS = 1
-test: $(STAMP)
+test: $(STAMP) lint
 	mkdir -p build
 	$(PY) -m pytest $(LANE_B) $(NBVAL) -p no:cacheprovider > build/lane-b.log 2>&1 & \
 	$(PY) -m pytest tests $(LANE_A) $(NBVAL); a=$$?; \
 	wait $$!; b=$$?; cat build/lane-b.log; \
 	$(PY) -m pytest $(LAST) $(NBVAL) -p no:cacheprovider; last=$$?; \
 	exit $$(( a || b || last ))
+
+# Style and architecture: ruff (lint and format, pyproject.toml) and the import contract
+# (layers point one way; models never import the rod; control never imports training).
+lint: $(STAMP)
+	$(VENV)/bin/ruff check softflow tests benchmarks notebooks
+	$(VENV)/bin/ruff format --check softflow tests benchmarks
+	$(VENV)/bin/lint-imports
 
 # 07 reads every other notebook's results: it runs last.
 reproduce: $(STAMP)

@@ -9,6 +9,7 @@
 Uses the profile's trained models (default: ci; trains them first if missing).
 Writes benchmarks/results/planning.json and prints a summary.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -17,9 +18,10 @@ import time
 
 import numpy as np
 import torch
-
 from results_file import write_results
-from softflow import control, data, metrics, train
+
+from softflow import control, data, training
+from softflow.control import metrics
 from softflow.models.common import one_thread
 from softflow.models.flow import LeanFlow
 from softflow.profiles import get_profile
@@ -38,28 +40,37 @@ def main():
     window_t, z_t = torch.as_tensor(window, dtype=torch.float32), torch.as_tensor(z, dtype=torch.float32)
     results = dict(model=args.model, profile=profile.name, step={}, per_step={})
     for name in ("mlp", "rf", "rf-physical", "rf-fwd"):
-        controller = control.Controller(train.ensure_trained(name, profile, dataset)[0], name)
-        extras = {k: torch.as_tensor(v[0], dtype=torch.float32)
-                  for k, v in controller.model.extras(window, controller.statics).items()}
+        controller = control.Controller(training.ensure_trained(name, profile, dataset)[0], name)
+        extras = {
+            k: torch.as_tensor(v[0], dtype=torch.float32)
+            for k, v in controller.model.extras(window, controller.statics).items()
+        }
         noise = {"noise": z_t} if controller.generative else {}
         with torch.inference_mode(), one_thread():
-            eager = metrics.latency(lambda: controller.model.predict(window_t, **extras, **noise), repeats=args.repeats)
+            predict = lambda c=controller, e=extras, n=noise: c.model.predict(window_t, **e, **n)  # noqa: E731
+            eager = metrics.latency(predict, repeats=args.repeats)
         step = metrics.latency(controller.step, window[0, 0], window[0, 1], repeats=args.repeats)
-        results["step"][name] = dict(eager_ms={k: 1e3 * v for k, v in eager.items()},
-                                     step_ms={k: 1e3 * v for k, v in step.items()})
-        print(f"{name:12s} step: median {1e3 * step['median']:.3f} ms (p99 {1e3 * step['p99']:.3f}); "
-              f"eager torch median {1e3 * eager['median']:.3f} ms (p99 {1e3 * eager['p99']:.3f})")
-    model, _ = train.ensure_trained(args.model, profile, dataset)  # the shipped model, or trained with its budget
+        results["step"][name] = dict(
+            eager_ms={k: 1e3 * v for k, v in eager.items()}, step_ms={k: 1e3 * v for k, v in step.items()}
+        )
+        print(
+            f"{name:12s} step: median {1e3 * step['median']:.3f} ms (p99 {1e3 * step['p99']:.3f}); "
+            f"eager torch median {1e3 * eager['median']:.3f} ms (p99 {1e3 * eager['p99']:.3f})"
+        )
+    model, _ = training.ensure_trained(args.model, profile, dataset)  # the shipped model, or trained with its budget
     lean = LeanFlow(model)
     with torch.inference_mode(), one_thread():
         for steps in (1, 2, 4, 10, 20):
             eager = metrics.latency(model.predict, window_t, None, z_t, steps, repeats=args.repeats)
             fast = metrics.latency(lean.predict, window, z, None, steps, repeats=args.repeats)
-            results["per_step"][steps] = dict(eager_ms={k: 1e3 * v for k, v in eager.items()},
-                                              lean_ms={k: 1e3 * v for k, v in fast.items()})
-            print(f"N={steps:2d}: eager torch median {1e3 * eager['median']:.3f} ms (p99 {1e3 * eager['p99']:.3f}), "
-                  f"lean numpy median {1e3 * fast['median']:.3f} ms (p99 {1e3 * fast['p99']:.3f}), "
-                  f"{eager['median'] / fast['median']:.1f}x")
+            results["per_step"][steps] = dict(
+                eager_ms={k: 1e3 * v for k, v in eager.items()}, lean_ms={k: 1e3 * v for k, v in fast.items()}
+            )
+            print(
+                f"N={steps:2d}: eager torch median {1e3 * eager['median']:.3f} ms (p99 {1e3 * eager['p99']:.3f}), "
+                f"lean numpy median {1e3 * fast['median']:.3f} ms (p99 {1e3 * fast['p99']:.3f}), "
+                f"{eager['median'] / fast['median']:.1f}x"
+            )
     controller = control.Controller(model, args.model)
     reference = dataset.states[dataset.test[0]]  # 501 states: a 500-step plan
     controller.plan(reference)
@@ -69,7 +80,9 @@ def main():
         controller.plan(reference)
         times.append(time.perf_counter() - start)
     results["trajectory_500_steps_ms"] = 1e3 * float(np.median(times))
-    print(f"whole 500-step trajectory in one batched call (N={model.steps}): {results['trajectory_500_steps_ms']:.1f} ms")
+    print(
+        f"whole 500-step trajectory in one batched call (N={model.steps}): {results['trajectory_500_steps_ms']:.1f} ms"
+    )
     write_results("planning", results)
     return 0
 

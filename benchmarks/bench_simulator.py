@@ -8,6 +8,7 @@
 
 Writes benchmarks/results/simulator.json and prints a summary.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -19,11 +20,11 @@ import time
 from pathlib import Path
 
 import numpy as np
-
 from results_file import write_results
-from softflow.data import DT, polynomial_excitation
-from softflow.robots import SIM_ROBOT
-from softflow.sim import Simulator
+
+from softflow.data.excitation import polynomial_excitation
+from softflow.rod.dynamics import Simulator
+from softflow.rod.robots import DT, SIM_ROBOT
 
 HERE = Path(__file__).resolve().parent
 ELASTICA_PYTHON = HERE.parent / ".venv-elastica" / "bin" / "python"
@@ -39,10 +40,12 @@ def run_pyelastica(u: np.ndarray) -> dict:
     """Tip trajectory and wall time of PyElastica for one episode, in its own interpreter."""
     with tempfile.TemporaryDirectory() as tmp:
         np.save(Path(tmp) / "u.npy", u)
-        script = (f"import sys, numpy as np; sys.path[:0] = [{str(HERE)!r}, {str(HERE.parent)!r}]; import pyelastica_rod;"
-                  f"from softflow.robots import SIM_ROBOT;"
-                  f"r = pyelastica_rod.simulate(SIM_ROBOT, np.load({str(Path(tmp) / 'u.npy')!r}));"
-                  f"np.save({str(Path(tmp) / 'tip.npy')!r}, r['tip']); print(r['wall_seconds'])")
+        script = (
+            f"import sys, numpy as np; sys.path[:0] = [{str(HERE)!r}, {str(HERE.parent)!r}]; import pyelastica_rod;"
+            f"from softflow.robots import SIM_ROBOT;"
+            f"r = pyelastica_rod.simulate(SIM_ROBOT, np.load({str(Path(tmp) / 'u.npy')!r}));"
+            f"np.save({str(Path(tmp) / 'tip.npy')!r}, r['tip']); print(r['wall_seconds'])"
+        )
         out = subprocess.run([str(ELASTICA_PYTHON), "-c", script], capture_output=True, text=True, check=True)
         return dict(tip=np.load(Path(tmp) / "tip.npy"), wall_seconds=float(out.stdout.strip().splitlines()[-1]))
 
@@ -59,8 +62,9 @@ def main():
     start = time.perf_counter()
     sim.rollout(u, progress=True)
     wall = time.perf_counter() - start
-    results["dataset"] = dict(episodes=args.episodes, seconds_each=args.seconds, wall_seconds=wall,
-                              episodes_per_second=args.episodes / wall)
+    results["dataset"] = dict(
+        episodes=args.episodes, seconds_each=args.seconds, wall_seconds=wall, episodes_per_second=args.episodes / wall
+    )
     print(f"ours: {args.episodes} episodes x {args.seconds} s in {wall:.1f} s ({args.episodes / wall:.1f} episodes/s)")
 
     u2 = smooth_3d_input()
@@ -80,15 +84,23 @@ def main():
         difference = np.linalg.norm(elastica["tip"] - ours, axis=1)
         results["pyelastica"] = dict(
             s_per_simulated_s=elastica["wall_seconds"] / simulated,
-            speedup_single=elastica["wall_seconds"] / single, speedup_batched=elastica["wall_seconds"] / batched,
-            max_tip_difference_mm=1e3 * difference.max(), max_tip_difference_percent_L=100 * difference.max() / SIM_ROBOT.length,
-            rms_tip_difference_mm=1e3 * np.sqrt(np.mean(difference**2)))
+            speedup_single=elastica["wall_seconds"] / single,
+            speedup_batched=elastica["wall_seconds"] / batched,
+            max_tip_difference_mm=1e3 * difference.max(),
+            max_tip_difference_percent_L=100 * difference.max() / SIM_ROBOT.length,
+            rms_tip_difference_mm=1e3 * np.sqrt(np.mean(difference**2)),
+        )
         e = results["pyelastica"]
-        print(f"2 s response: PyElastica {e['s_per_simulated_s']:.2f} s per simulated s; ours {single / simulated:.3f} "
-              f"(one episode) and {batched / simulated:.4f} (per episode, batch of 256): speed-up "
-              f"{e['speedup_single']:.0f}x / {e['speedup_batched']:.0f}x")
-        print(f"tip difference: max {e['max_tip_difference_mm']:.2f} mm ({e['max_tip_difference_percent_L']:.2f} % of L), "
-              f"RMS {e['rms_tip_difference_mm']:.2f} mm")
+        print(
+            f"2 s response: PyElastica {e['s_per_simulated_s']:.2f} s per simulated s; ours {single / simulated:.3f} "
+            f"(one episode) and {batched / simulated:.4f} (per episode, batch of 256): speed-up "
+            f"{e['speedup_single']:.0f}x / {e['speedup_batched']:.0f}x"
+        )
+        print(
+            f"tip difference: max {e['max_tip_difference_mm']:.2f} mm "
+            f"({e['max_tip_difference_percent_L']:.2f} % of L), "
+            f"RMS {e['rms_tip_difference_mm']:.2f} mm"
+        )
     write_results("simulator", results)
     return 0
 

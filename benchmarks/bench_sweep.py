@@ -4,6 +4,7 @@ side by side in one run. The default grid, ``data_size`` in the ci profile, is f
 that each train a model from scratch, so the cells are the work and nothing is cached
 between runs. Writes benchmarks/results/sweep.json.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -11,7 +12,8 @@ import tempfile
 import time
 
 from results_file import write_results
-from softflow import sweep
+
+from softflow.studies import sweep
 
 
 def main():
@@ -29,7 +31,9 @@ def main():
         if run.failures:
             raise SystemExit(f"cells failed: {run.failures}")
         results[workers] = dict(seconds=seconds, cells=int(run.rows.key.nunique()))
-        print(f"{args.study} ({args.profile}), {workers} worker(s): {results[workers]['cells']} cells in {seconds:.1f} s")
+        print(
+            f"{args.study} ({args.profile}), {workers} worker(s): {results[workers]['cells']} cells in {seconds:.1f} s"
+        )
     base = results[args.workers[0]]["seconds"]
     for workers, result in results.items():
         result["speed_up"] = base / result["seconds"]

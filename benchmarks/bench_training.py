@@ -6,6 +6,7 @@ so no two share the cores; seconds per epoch times the budget's epochs gives the
 of a full run (an upper bound: early stopping can end it sooner). RF-FWD's forward
 surrogate is timed as its own row. Writes benchmarks/results/training.json.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -15,8 +16,9 @@ import tempfile
 from pathlib import Path
 
 from results_file import write_results
-from softflow import data, train
-from softflow.models import model_spec
+
+from softflow import data, training
+from softflow.models.registry import model_spec
 from softflow.profiles import get_profile
 
 MODELS = ("mlp", "lstm", "transformer", "rf", "rf-physical", "forward", "rf-fwd")  # RF-FWD needs its surrogate
@@ -36,13 +38,19 @@ def main():
             budget = profile.train_config(name)
             timed = dataclasses.replace(budget, epochs=args.epochs, patience=args.epochs)
             dependencies = {dep: trained[dep] for dep in model_spec(name).requires}
-            trained[name], checkpoint = train.train(name, dataset, timed, Path(scratch) / f"{name}.pt",
-                                                    dependencies=dependencies, progress=False)
+            trained[name], checkpoint = training.train(
+                name, dataset, timed, Path(scratch) / f"{name}.pt", dependencies=dependencies, progress=False
+            )
             per_epoch = checkpoint["wall_seconds"] / checkpoint["epochs_run"]
-            results["models"][name] = dict(seconds_per_epoch=per_epoch, budget_epochs=budget.epochs,
-                                           full_budget_minutes=per_epoch * budget.epochs / 60)
-            print(f"{name:12s} {per_epoch:6.2f} s/epoch x {budget.epochs:3d} epochs = "
-                  f"{per_epoch * budget.epochs / 60:5.1f} min for the full budget")
+            results["models"][name] = dict(
+                seconds_per_epoch=per_epoch,
+                budget_epochs=budget.epochs,
+                full_budget_minutes=per_epoch * budget.epochs / 60,
+            )
+            print(
+                f"{name:12s} {per_epoch:6.2f} s/epoch x {budget.epochs:3d} epochs = "
+                f"{per_epoch * budget.epochs / 60:5.1f} min for the full budget"
+            )
     write_results("training", results)
     return 0
 

@@ -48,6 +48,7 @@ How the model is matched:
   stable time step: 5 us at 25 elements (6.25 us diverges) where the plain rod runs
   at 8 us.
 """
+
 from __future__ import annotations
 
 import math
@@ -74,7 +75,9 @@ class _BendingLaw:
         rod.bend_matrix[2, 2] *= TORSION_FACTOR
         self.rod = rod
         self.stiffness = np.stack([rod.bend_matrix[0, 0], rod.bend_matrix[1, 1]])  # (2, n-1)
-        relaxation = time_step * KV_STIFFNESS_RATIO * robot.youngs_modulus / robot.damping if robot.damping else math.inf
+        relaxation = (
+            time_step * KV_STIFFNESS_RATIO * robot.youngs_modulus / robot.damping if robot.damping else math.inf
+        )
         self.decay = math.exp(-relaxation)  # no damping: the branch follows kappa and adds nothing
         self.viscous_kappa = np.zeros_like(self.stiffness)
         self.moment = np.zeros((2, 1))
@@ -92,8 +95,9 @@ class _BendingLaw:
         self._set_rest_kappa()
 
 
-def simulate(robot, u, dt: float = 0.01, duration: float | None = None, n_elements: int = 25,
-             time_step: float = 5e-6) -> dict:
+def simulate(
+    robot, u, dt: float = 0.01, duration: float | None = None, n_elements: int = 25, time_step: float = 5e-6
+) -> dict:
     """Tip trajectory of one episode in PyElastica, from rest.
 
     u: (T, 2) differential cable tensions (N), each held for ``dt`` s (the last one
@@ -117,9 +121,16 @@ def simulate(robot, u, dt: float = 0.01, duration: float | None = None, n_elemen
 
     element = robot.length / (n_elements - 0.5)  # half an element behind the clamp
     rod = ea.CosseratRod.straight_rod(
-        n_elements, np.array([-element / 2, 0.0, 0.0]), np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]),
-        n_elements * element, robot.diameter / 2, robot.density,
-        youngs_modulus=robot.youngs_modulus, shear_modulus=robot.youngs_modulus / 3)
+        n_elements,
+        np.array([-element / 2, 0.0, 0.0]),
+        np.array([1.0, 0.0, 0.0]),
+        np.array([0.0, 1.0, 0.0]),
+        n_elements * element,
+        robot.diameter / 2,
+        robot.density,
+        youngs_modulus=robot.youngs_modulus,
+        shear_modulus=robot.youngs_modulus / 3,
+    )
     law = _BendingLaw(rod, robot, h)
     system = _System()
     system.append(rod)
@@ -148,8 +159,8 @@ def main():
     response over 2 s, PyElastica's convergence, and timings."""
     import dataclasses
 
-    from softflow.robots import SIM_ROBOT as robot
-    from softflow.sim import Simulator
+    from softflow.rod.dynamics import Simulator
+    from softflow.rod.robots import SIM_ROBOT as robot
 
     ours = Simulator(robot, gravity="none")
     L = robot.length
@@ -159,12 +170,16 @@ def main():
     for u in ([2.0, 1.0], [-1.5, -0.5]):
         tip = simulate(settled, [u], duration=2.0)["tip"][-1]
         exact = ours.static_tip(np.array([u]))[0]
-        print(f"static u={u}: PyElastica {np.round(tip * 1e3, 2)} mm, ours {np.round(exact * 1e3, 2)} mm, "
-              f"difference {np.linalg.norm(tip - exact) * 1e3:.3f} mm")
+        print(
+            f"static u={u}: PyElastica {np.round(tip * 1e3, 2)} mm, ours {np.round(exact * 1e3, 2)} mm, "
+            f"difference {np.linalg.norm(tip - exact) * 1e3:.3f} mm"
+        )
 
     t = np.arange(200) * 0.01
-    inputs = {"smooth": np.stack([2 * np.sin(2 * np.pi * 0.8 * t), 1.5 * (1 - np.cos(2 * np.pi * 0.5 * t))], -1),
-              "step (2, 1)": np.tile([2.0, 1.0], (200, 1))}
+    inputs = {
+        "smooth": np.stack([2 * np.sin(2 * np.pi * 0.8 * t), 1.5 * (1 - np.cos(2 * np.pi * 0.5 * t))], -1),
+        "step (2, 1)": np.tile([2.0, 1.0], (200, 1)),
+    }
     for name, u in inputs.items():
         result = simulate(robot, u)
         fine = simulate(robot, u, n_elements=50, time_step=2.5e-6)
@@ -177,12 +192,17 @@ def main():
         d = np.linalg.norm(result["tip"] - X, axis=1) * 1e3
         c = np.linalg.norm(result["tip"] - fine["tip"], axis=1) * 1e3
         seconds = len(u) * 0.01
-        print(f"{name}: max {d.max():.2f} mm ({d.max() / L / 10:.2f} % of L), RMS {np.sqrt(np.mean(d**2)):.2f} mm "
-              f"({np.sqrt(np.mean(d**2)) / L / 10:.2f} % of L); PyElastica 50 elements/2.5 us vs 25/5 us: max {c.max():.2f} mm")
-        print(f"  wall per simulated s: PyElastica {result['wall_seconds'] / seconds:.2f} s "
-              f"(50 elements {fine['wall_seconds'] / seconds:.2f} s), ours {single / seconds:.3f} s single, "
-              f"{batched / seconds:.4f} s per episode batched x256 -> speed-up {result['wall_seconds'] / single:.0f}x "
-              f"/ {result['wall_seconds'] / batched:.0f}x")
+        print(
+            f"{name}: max {d.max():.2f} mm ({d.max() / L / 10:.2f} % of L), RMS {np.sqrt(np.mean(d**2)):.2f} mm "
+            f"({np.sqrt(np.mean(d**2)) / L / 10:.2f} % of L); "
+            f"PyElastica 50 elements/2.5 us vs 25/5 us: max {c.max():.2f} mm"
+        )
+        print(
+            f"  wall per simulated s: PyElastica {result['wall_seconds'] / seconds:.2f} s "
+            f"(50 elements {fine['wall_seconds'] / seconds:.2f} s), ours {single / seconds:.3f} s single, "
+            f"{batched / seconds:.4f} s per episode batched x256 -> speed-up {result['wall_seconds'] / single:.0f}x "
+            f"/ {result['wall_seconds'] / batched:.0f}x"
+        )
 
 
 if __name__ == "__main__":

@@ -1,4 +1,5 @@
 """Where every benchmark leaves its numbers: benchmarks/results/<name>.json (not committed)."""
+
 from __future__ import annotations
 
 import json

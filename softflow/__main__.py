@@ -1,3 +1,3 @@
-from .cli import main
+from softflow.cli import main
 
 main()

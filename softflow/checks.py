@@ -1,4 +1,5 @@
 """Input checks shared by the public functions: clear ValueErrors, never silent casts."""
+
 from __future__ import annotations
 
 import numpy as np

@@ -1,4 +1,5 @@
 """Named run sizes: "ci" finishes in minutes on 2 cores, "paper" is the real experiment."""
+
 from __future__ import annotations
 
 import os
@@ -8,10 +9,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .checks import check_choice
+from softflow.checks import check_choice
+from softflow.store import REPO
 
-REPO = Path(__file__).resolve().parent.parent
-DATA_DIR = REPO / "data"  # generated datasets, caches and user-trained models (git-ignored)
 SEQUENCE_MODELS = ("lstm", "transformer")  # models that read a window of past transitions
 
 
@@ -65,11 +65,17 @@ class Profile:
 
 
 PROFILES = {
-    "ci": Profile("ci", n_episodes=200, bench_episodes=64, twin_sensitivity_shapes=1, identification_seconds=1.5,
-                  train=TrainConfig(epochs=4, steps_per_epoch=150, batch_size=256, warmup_steps=50, val_samples=5000,
-                                    patience=3)),
-    "paper": Profile("paper", n_episodes=3000, bench_episodes=3000,
-                     per_step_train=TrainConfig(epochs=240, patience=30)),
+    "ci": Profile(
+        "ci",
+        n_episodes=200,
+        bench_episodes=64,
+        twin_sensitivity_shapes=1,
+        identification_seconds=1.5,
+        train=TrainConfig(epochs=4, steps_per_epoch=150, batch_size=256, warmup_steps=50, val_samples=5000, patience=3),
+    ),
+    "paper": Profile(
+        "paper", n_episodes=3000, bench_episodes=3000, per_step_train=TrainConfig(epochs=240, patience=30)
+    ),
 }
 
 
@@ -78,18 +84,39 @@ def get_profile(name: str) -> Profile:
     return PROFILES[name]
 
 
+def set_threads(n: int) -> None:
+    """Use ``n`` threads in torch and in numpy's BLAS from now on. Setting OMP_NUM_THREADS does
+    nothing once numpy and torch are loaded (a notebook imports them before ``setup``), so the
+    running thread pools are limited instead."""
+    import torch
+    from threadpoolctl import threadpool_limits
+
+    if not (isinstance(n, int) and n >= 1):
+        raise ValueError(f"threads must be a positive integer; got {n!r}")
+    threadpool_limits(limits=n)
+    torch.set_num_threads(n)
+
+
 def setup(name: str) -> Profile:
-    """One call at the top of every notebook: seeds, threads and plot style fixed, so
-    outputs are deterministic (nbval compares them)."""
+    """One call at the top of every notebook: seeds, threads (OMP_NUM_THREADS, else 2) and plot
+    style fixed, so outputs are deterministic (nbval compares them)."""
     profile = get_profile(name)
     random.seed(profile.seed)
     np.random.seed(profile.seed)
     np.set_printoptions(precision=4, suppress=True)
-    os.environ.setdefault("OMP_NUM_THREADS", "2")
+    set_threads(int(os.environ.get("OMP_NUM_THREADS", "2")))
     import matplotlib
 
     # inline figures at 64 dpi keep the committed notebooks small; figures/ is saved at 150
-    matplotlib.rcParams.update({"figure.dpi": 64, "savefig.dpi": 150, "figure.figsize": (6.4, 4.0),
-                                "axes.grid": True, "grid.alpha": 0.3, "savefig.bbox": "tight"})
+    matplotlib.rcParams.update(
+        {
+            "figure.dpi": 64,
+            "savefig.dpi": 150,
+            "figure.figsize": (6.4, 4.0),
+            "axes.grid": True,
+            "grid.alpha": 0.3,
+            "savefig.bbox": "tight",
+        }
+    )
     profile.output_dir.mkdir(parents=True, exist_ok=True)
     return profile

@@ -5,6 +5,7 @@ version constants), never of source text, so a comment edit invalidates nothing.
 file is written to a temporary file in its own directory, synced and renamed over the
 destination, so a reader never sees half a file and an interrupted run corrupts nothing.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -16,6 +17,11 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
+
+REPO = Path(__file__).resolve().parent.parent
+# Generated datasets, caches and user-trained models (git-ignored): the one cache root, which
+# every layer writes under; $SOFTFLOW_DATA moves it (e.g. for an installed package).
+DATA_DIR = Path(os.environ.get("SOFTFLOW_DATA", REPO / "data"))
 
 
 def content_key(spec: dict, length: int = 16) -> str:

@@ -1,9 +1,10 @@
 """Fixtures shared across test files: one small dataset and each model trained once per
 session (with ``--dist loadfile`` once per worker), never in the repository's folders."""
+
 import pytest
 
-from softflow import data, train
-from softflow.models import model_spec
+from softflow import data, training
+from softflow.models.registry import model_spec
 from softflow.profiles import Profile, TrainConfig
 
 SMALL = Profile("small", n_episodes=24, episode_seconds=2.0)
@@ -24,7 +25,6 @@ def trained(dataset, tmp_path_factory):
 
     def get(name):
         dependencies = {dep: get(dep)[0] for dep in model_spec(name).requires}
-        return train.train(name, dataset, QUICK, folder / f"{name}.pt", dependencies=dependencies, progress=False)
+        return training.train(name, dataset, QUICK, folder / f"{name}.pt", dependencies=dependencies, progress=False)
 
     return get
-

@@ -5,12 +5,13 @@ simulator as they were before sim.py was split into kinematics / dynamics / stat
 Rerun only when a change of the numbers is intended (and bump SIMULATOR_VERSION then):
     .venv/bin/python tests/make_sim_golden.py
 """
+
 from pathlib import Path
 
 import numpy as np
 
-from softflow.robots import HW_ROBOT, SIM_ROBOT
-from softflow.sim import Simulator
+from softflow.rod.dynamics import Simulator
+from softflow.rod.robots import HW_ROBOT, SIM_ROBOT
 
 GOLDEN = Path(__file__).parent / "data" / "sim_golden.npz"
 

@@ -1,10 +1,11 @@
 """The conditional-spread estimator on cases worked by hand: additive noise of known size is
 recovered, a deterministic map sits at the floor, a two-valued inverse shows its full
 spread; and on the simulator's transitions the inverse is nearly one-valued."""
+
 import numpy as np
 import pytest
 
-from softflow.ambiguity import conditional_spread, transition_spread
+from softflow.studies.ambiguity import conditional_spread, transition_spread
 
 
 @pytest.fixture(scope="module")

@@ -1,10 +1,11 @@
 """Cable tensions and cable length changes."""
+
 import numpy as np
 import pytest
 
-from softflow.cables import cable_actuation, cable_directions, cable_displacements, cable_tensions
-from softflow.robots import HW_ROBOT, SIM_ROBOT
-from softflow.sim import Simulator
+from softflow.rod.cables import cable_actuation, cable_directions, cable_displacements, cable_tensions
+from softflow.rod.dynamics import Simulator
+from softflow.rod.robots import HW_ROBOT, SIM_ROBOT
 
 
 @pytest.mark.parametrize("robot", [SIM_ROBOT, HW_ROBOT])

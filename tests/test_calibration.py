@@ -1,14 +1,14 @@
 """Calibration against hand-checkable cases: the identity for a rod identified as the model,
 the identified rod's statics hit the model's tips, a lead undoes a motor lag, and on the twin
 a calibrated plan tracks better than the plan made for the model rod."""
+
 import numpy as np
 import pytest
 
 from softflow import hardware
-from softflow.calibration import RAMP_SECONDS, Calibration
-from softflow.data import DT
-from softflow.robots import HW_ROBOT
-from softflow.sim import Simulator
+from softflow.hardware.calibration import RAMP_SECONDS, Calibration
+from softflow.rod.dynamics import Simulator
+from softflow.rod.robots import DT, HW_ROBOT
 
 GAP = hardware.RealityGap(youngs_modulus=-0.15, density=0.10)
 
@@ -52,23 +52,26 @@ def test_a_command_lead_undoes_the_motor_lag():
     led = lagging.replay(hardware.cable_commands(u, sim, lead=0.02))["states"]
     assert np.abs(led - ideal)[..., :3].max() < 0.2 * np.abs(plain - ideal)[..., :3].max()
     stepper = hardware.StepCommands(sim, lead=0.02)
-    np.testing.assert_allclose(np.array([stepper(u_t) for u_t in u[0]]), hardware.cable_commands(u, sim, lead=0.02)[0],
-                               atol=1e-12)
+    np.testing.assert_allclose(
+        np.array([stepper(u_t) for u_t in u[0]]), hardware.cable_commands(u, sim, lead=0.02)[0], atol=1e-12
+    )
     with pytest.raises(ValueError, match="lead"):
         hardware.cable_commands(u, sim, lead=-0.01)
 
 
 def test_a_calibrated_open_loop_tracks_the_twin_better(horizontal):
     model, calibration = horizontal
-    from softflow.trajectories import hardware_references
+    from softflow.data.references import hardware_references
 
     class StaticController:  # the quasi-static plan of the model rod: a stand-in for a learned model
         def plan(self, states, **_):
             return model.static_table().inverse(states[1:, :3])
 
     reference = hardware_references(model)[2]  # the circle
-    runs = {name: hardware.run_twin(StaticController(), [reference], model, GAP, calibration=c)[0]
-            for name, c in (("model", None), ("calibrated", calibration))}
+    runs = {
+        name: hardware.run_twin(StaticController(), [reference], model, GAP, calibration=c)[0]
+        for name, c in (("model", None), ("calibrated", calibration))
+    }
     # a third off at least: the static part of the gap goes, the quasi-static plan's own lag stays
     assert runs["calibrated"].rmse_true_mm[0] < 2 / 3 * runs["model"].rmse_true_mm[0]
 

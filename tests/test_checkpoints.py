@@ -1,5 +1,6 @@
 """Checkpoints are found by content: every shipped one loads current, and a model trained
 for another rod, even one that keeps the name of a shipped rod, never touches checkpoints/."""
+
 import dataclasses
 import hashlib
 import warnings
@@ -8,98 +9,127 @@ import numpy as np
 import pytest
 import torch
 
-from softflow import control, data, train, trajectories
-from softflow.models import resolved_kwargs
+from softflow import control, data, training
+from softflow.models import checkpoints
+from softflow.models.registry import resolved_kwargs
 from softflow.profiles import Profile, TrainConfig
-from softflow.robots import HW_ROBOT, SIM_ROBOT
-from softflow.sim import Simulator
+from softflow.rod import rod_folder
+from softflow.rod.dynamics import Simulator
+from softflow.rod.robots import HW_ROBOT, SIM_ROBOT
 
 RODS = [(SIM_ROBOT, "vertical"), (HW_ROBOT, "vertical"), (HW_ROBOT, "horizontal")]
 TINY = TrainConfig(epochs=1, steps_per_epoch=5, batch_size=32, warmup_steps=2, val_samples=100, patience=1)
 
 
 def shipped_files():
-    return sorted(p for p in train.SHIPPED.rglob("*.pt"))
+    return sorted(p for p in checkpoints.SHIPPED.rglob("*.pt"))
 
 
 def tree_digest(folder):
-    return {str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(folder.rglob("*"))
-            if p.is_file()}
+    return {
+        str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(folder.rglob("*"))
+        if p.is_file()
+    }
 
 
 def rod_of(path):
     folder = path.parent.parent if path.parent.name == "variants" else path.parent
-    matches = [(robot, gravity) for robot, gravity in RODS if train.SHIPPED / train.rod_folder(robot, gravity) == folder]
+    matches = [
+        (robot, gravity) for robot, gravity in RODS if checkpoints.SHIPPED / rod_folder(robot, gravity) == folder
+    ]
     assert len(matches) == 1, f"{path} is in no known rod's folder"
     return matches[0]
 
 
-@pytest.mark.parametrize("path", shipped_files(), ids=lambda p: str(p.relative_to(train.SHIPPED)))
+@pytest.mark.parametrize("path", shipped_files(), ids=lambda p: str(p.relative_to(checkpoints.SHIPPED)))
 def test_every_shipped_checkpoint_is_current_and_plans(path):
-    checkpoint = train.load_checkpoint(path)
+    checkpoint = checkpoints.load_checkpoint(path)
     robot, gravity = rod_of(path)
     name = checkpoint["name"]
     default = resolved_kwargs(name)
     variant = {k: v for k, v in checkpoint["model_kwargs"].items() if v != default[k]}
-    assert train.find_checkpoint(name, "paper", robot, gravity, variant) == (path, True)
+    assert control.find_trained(name, "paper", robot, gravity, variant) == (path, True)
     if name == "forward":
         return
     sim = Simulator(robot, gravity)
     rest = sim.tip_positions(sim.rest_q()[None])[0, 1:]
-    reference = trajectories.shape_reference(sim, "circle", size=0.05, centre=rest).states[:40]
+    reference = data.shape_reference(sim, "circle", size=0.05, centre=rest).states[:40]
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # no staleness warning, no saturation
-        controller = (control.load_controller(name, "paper", robot, gravity) if not variant else
-                      control.Controller(train.model_from_checkpoint(checkpoint, path), name, robot=robot,
-                                         gravity=gravity))
+        controller = (
+            control.load_controller(name, "paper", robot, gravity)
+            if not variant
+            else control.Controller(
+                checkpoints.model_from_checkpoint(checkpoint, path), name, robot=robot, gravity=gravity
+            )
+        )
         u = controller.plan(reference)
     assert u.shape == (39, 2) and np.isfinite(u).all()
 
 
 def test_a_calibrated_rod_with_a_shipped_name_trains_outside_checkpoints(tmp_path, monkeypatch):
-    monkeypatch.setattr(train, "TRAINED", tmp_path / "trained")
-    before = tree_digest(train.SHIPPED)
+    monkeypatch.setattr(checkpoints, "TRAINED", tmp_path / "trained")
+    before = tree_digest(checkpoints.SHIPPED)
     calibrated = dataclasses.replace(HW_ROBOT, youngs_modulus=0.85 * HW_ROBOT.youngs_modulus)  # still named "hw"
     paper_sized = Profile("paper", n_episodes=10, episode_seconds=0.3, train=TINY)
     dataset = data.load_dataset(paper_sized, calibrated, "horizontal", data_dir=tmp_path / "data", progress=False)
-    train.ensure_trained("rf-fwd", paper_sized, dataset, calibrated, "horizontal")
-    assert tree_digest(train.SHIPPED) == before
-    folder = tmp_path / "trained" / "paper" / train.rod_folder(calibrated, "horizontal")
+    training.ensure_trained("rf-fwd", paper_sized, dataset, calibrated, "horizontal")
+    assert tree_digest(checkpoints.SHIPPED) == before
+    folder = tmp_path / "trained" / "paper" / rod_folder(calibrated, "horizontal")
     assert sorted(p.name for p in folder.iterdir()) == ["forward.pt", "rf-fwd.pt"]
-    assert train.rod_folder(calibrated, "horizontal") != train.rod_folder(HW_ROBOT, "horizontal")
+    assert rod_folder(calibrated, "horizontal") != rod_folder(HW_ROBOT, "horizontal")
 
 
 def test_only_ship_writes_the_shipped_folder(tmp_path, monkeypatch):
-    monkeypatch.setattr(train, "SHIPPED", tmp_path / "shipped")
-    monkeypatch.setattr(train, "TRAINED", tmp_path / "trained")
+    monkeypatch.setattr(checkpoints, "SHIPPED", tmp_path / "shipped")
+    monkeypatch.setattr(checkpoints, "TRAINED", tmp_path / "trained")
     paper_sized = Profile("paper", n_episodes=10, episode_seconds=0.3, train=TINY)
     dataset = data.load_dataset(paper_sized, data_dir=tmp_path / "data", progress=False)
-    train.ensure_trained("mlp", paper_sized, dataset)
+    training.ensure_trained("mlp", paper_sized, dataset)
     assert not (tmp_path / "shipped").exists() and (tmp_path / "trained" / "paper" / "mlp.pt").exists()
-    train.ensure_trained("mlp", paper_sized, dataset, ship=True)
+    training.ensure_trained("mlp", paper_sized, dataset, ship=True)
     assert (tmp_path / "shipped" / "mlp.pt").exists()
     with pytest.raises(ValueError, match="only seed-0 paper-profile models ship"):
-        train.checkpoint_path("mlp", "ci", shipped=True)
+        checkpoints.checkpoint_path("mlp", "ci", shipped=True)
     with pytest.raises(ValueError, match="dataset was made for 'sim' / 'vertical', not 'hw' / 'vertical'"):
-        train.ensure_trained("mlp", paper_sized, dataset, HW_ROBOT)
+        training.ensure_trained("mlp", paper_sized, dataset, HW_ROBOT)
 
 
 def test_other_seeds_train_apart_from_the_shipped_model(tmp_path, monkeypatch):
     """Seed 0 of the paper profile is the shipped model; seed 1 trains (with its surrogate, on
     the same seed) into the folder it is given, with other weights."""
-    monkeypatch.setattr(train, "SHIPPED", tmp_path / "shipped")
+    monkeypatch.setattr(checkpoints, "SHIPPED", tmp_path / "shipped")
     paper_sized = Profile("paper", n_episodes=10, episode_seconds=0.3, train=TINY)
     dataset = data.load_dataset(paper_sized, data_dir=tmp_path / "data", progress=False)
-    shipped_model, _ = train.ensure_trained("rf-fwd", paper_sized, dataset, ship=True)
-    reused, _ = train.ensure_trained("rf-fwd", paper_sized, dataset, root=tmp_path / "sweep")
+    shipped_model, _ = training.ensure_trained("rf-fwd", paper_sized, dataset, ship=True)
+    reused, _ = training.ensure_trained("rf-fwd", paper_sized, dataset, root=tmp_path / "sweep")
     assert not (tmp_path / "sweep").exists()  # seed 0 is the shipped model
-    other, checkpoint = train.ensure_trained("rf-fwd", paper_sized, dataset, seed=1, root=tmp_path / "sweep")
+    other, checkpoint = training.ensure_trained("rf-fwd", paper_sized, dataset, seed=1, root=tmp_path / "sweep")
     assert sorted(p.name for p in (tmp_path / "sweep").iterdir()) == ["forward-seed1.pt", "rf-fwd-seed1.pt"]
     assert checkpoint["train_config"]["seed"] == 1
     weights = [dict(m.named_parameters())["net.0.weight"] for m in (shipped_model, reused, other)]
     assert torch.equal(weights[0], weights[1]) and not torch.equal(weights[0], weights[2])
-    assert train.checkpoint_path("mlp", "ci", seed=2) == train.TRAINED / "ci" / "mlp-seed2.pt"
+    assert checkpoints.checkpoint_path("mlp", "ci", seed=2) == checkpoints.TRAINED / "ci" / "mlp-seed2.pt"
     with pytest.raises(ValueError, match="only seed-0 paper-profile models ship"):
-        train.checkpoint_path("mlp", "paper", seed=1, shipped=True)
+        checkpoints.checkpoint_path("mlp", "paper", seed=1, shipped=True)
     with pytest.raises(ValueError, match="seed must be a non-negative integer"):
-        train.checkpoint_path("mlp", "paper", seed=-1)
+        checkpoints.checkpoint_path("mlp", "paper", seed=-1)
+
+
+class _Payload:
+    """An object a checkpoint file could smuggle in: unpickling it would run its code."""
+
+    def __reduce__(self):
+        return (print, ("unpickled!",))
+
+
+def test_a_checkpoint_carrying_a_pickled_object_is_refused(tmp_path, capsys):
+    path = tmp_path / "evil.pt"
+    torch.save({"name": "mlp", "model_kwargs": {}, "model": {}, "payload": _Payload()}, path)
+    with pytest.raises(ValueError, match="pickled object"):
+        checkpoints.load_checkpoint(path)
+    assert "unpickled!" not in capsys.readouterr().out  # nothing ran
+    plain = tmp_path / "plain.pt"
+    checkpoints.save_checkpoint({"name": "mlp", "model_kwargs": {}, "model": {"w": torch.ones(2)}}, plain)
+    assert checkpoints.load_checkpoint(plain)["model"]["w"].tolist() == [1.0, 1.0]

@@ -1,11 +1,13 @@
-"""Excitation, dataset cache and reference trajectories."""
+"""Excitation, dataset cache and reference data."""
+
 import numpy as np
 import pytest
 
-from softflow import data, trajectories
+from softflow import data
+from softflow.data import dataset as dataset_module
 from softflow.profiles import Profile
-from softflow.robots import HW_ROBOT, SIM_ROBOT
-from softflow.sim import Simulator
+from softflow.rod.dynamics import Simulator
+from softflow.rod.robots import DT, HW_ROBOT, SIM_ROBOT, U_MAX
 
 TINY = Profile("tiny", n_episodes=6, episode_seconds=0.3)
 
@@ -25,7 +27,7 @@ def sim():
 def test_polynomial_excitation_stays_in_bounds_and_spans_the_range():
     u = data.polynomial_excitation(500, 500, np.random.default_rng(0))
     assert u.shape == (500, 500, 2)
-    assert np.abs(u).max() <= data.U_MAX
+    assert np.abs(u).max() <= U_MAX
     peaks = np.abs(u).max(1)
     assert peaks.min() >= 0.5 - 1e-12 and peaks.max() > 3.9
 
@@ -51,16 +53,16 @@ def test_cache_is_reused_and_a_corrupt_file_is_rebuilt(tmp_path, monkeypatch):
         raise AssertionError("cached data was regenerated")
 
     with monkeypatch.context() as patch:
-        patch.setattr(data.Simulator, "rollout", no_simulation)
+        patch.setattr(Simulator, "rollout", no_simulation)
         np.testing.assert_array_equal(data.load_dataset(TINY, data_dir=tmp_path).states, first.states)
     path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])  # truncated, as by a crash
     np.testing.assert_array_equal(data.load_dataset(TINY, data_dir=tmp_path, progress=False).states, first.states)
 
 
 def test_an_interrupted_generation_resumes_from_its_finished_blocks(tmp_path, monkeypatch):
-    monkeypatch.setattr(data, "BLOCK_EPISODES", 2)
+    monkeypatch.setattr(dataset_module, "BLOCK_EPISODES", 2)
     calls = []
-    real_rollout = data.Simulator.rollout
+    real_rollout = Simulator.rollout
 
     def crash_on_second_block(self, u, **kwargs):
         calls.append(len(u))
@@ -68,13 +70,13 @@ def test_an_interrupted_generation_resumes_from_its_finished_blocks(tmp_path, mo
             raise KeyboardInterrupt
         return real_rollout(self, u, **kwargs)
 
-    monkeypatch.setattr(data.Simulator, "rollout", crash_on_second_block)
+    monkeypatch.setattr(Simulator, "rollout", crash_on_second_block)
     with pytest.raises(KeyboardInterrupt):
         data.load_dataset(TINY, data_dir=tmp_path, progress=False)
     assert not list(tmp_path.glob("dataset-*.npz"))  # nothing half-written is visible
-    monkeypatch.setattr(data.Simulator, "rollout", real_rollout)
+    monkeypatch.setattr(Simulator, "rollout", real_rollout)
     calls.clear()
-    monkeypatch.setattr(data.Simulator, "rollout", lambda self, u, **kw: calls.append(len(u)) or real_rollout(self, u))
+    monkeypatch.setattr(Simulator, "rollout", lambda self, u, **kw: calls.append(len(u)) or real_rollout(self, u))
     D = data.load_dataset(TINY, data_dir=tmp_path, progress=False)
     assert calls == [2, 2]  # the first block was not simulated again
     assert_same_states(D.states, Simulator(SIM_ROBOT).rollout(D.u))
@@ -82,19 +84,19 @@ def test_an_interrupted_generation_resumes_from_its_finished_blocks(tmp_path, mo
 
 @pytest.fixture(scope="module")
 def circle(sim):
-    return trajectories.shape_reference(sim, "circle")
+    return data.shape_reference(sim, "circle")
 
 
 def test_reference_velocity_is_the_time_derivative_of_its_positions(sim, circle):
     X = circle.states
-    central = (X[2:, :3] - X[:-2, :3]) / (2 * data.DT)
+    central = (X[2:, :3] - X[:-2, :3]) / (2 * DT)
     np.testing.assert_allclose(central, X[1:-1, 3:], atol=2e-4)  # O(dt^2) of a 0.15 m/s circle
 
 
 @pytest.mark.parametrize("name", ["heart", "char_M"])
 def test_reference_x_velocity_follows_the_static_workspace(sim, name):
     """v = dp/d(y, z) (v_y, v_z): check the chain rule against a difference of the lift."""
-    X = trajectories.shape_reference(sim, name).states[::25]
+    X = data.shape_reference(sim, name).states[::25]
     step = 1e-4 / np.abs(X[:, 4:]).max()
     plus, _, _ = sim.static_lift(X[:, 1:3] + step * X[:, 4:])
     minus, _, _ = sim.static_lift(X[:, 1:3] - step * X[:, 4:])
@@ -103,26 +105,26 @@ def test_reference_x_velocity_follows_the_static_workspace(sim, name):
 
 
 def test_mask_covers_exactly_the_path_after_the_approach(sim, circle):
-    n_approach = int(round(trajectories.APPROACH_SECONDS / data.DT))
+    n_approach = int(round(data.APPROACH_SECONDS / DT))
     assert not circle.mask[:n_approach].any() and circle.mask[n_approach:].all()
     np.testing.assert_allclose(circle.states[0, :3], sim.tip_positions(sim.rest_q()[None])[0], atol=1e-9)
-    np.testing.assert_allclose(circle.states[n_approach, 1:3], [trajectories.SIZE, 0.0], atol=1e-6)
+    np.testing.assert_allclose(circle.states[n_approach, 1:3], [data.SIZE, 0.0], atol=1e-6)
     np.testing.assert_allclose(circle.states[0, 3:], 0.0, atol=1e-12)  # starts at rest
 
 
 def test_a_path_outside_the_workspace_raises(sim):
     with pytest.raises(ValueError, match="workspace"):
-        trajectories.shape_reference(sim, "circle", size=0.35)
+        data.shape_reference(sim, "circle", size=0.35)
 
 
 def test_actuated_references_keep_their_true_input(sim):
-    [reference] = trajectories.random_references(sim, n=1, seconds=0.5)
+    [reference] = data.random_references(sim, n=1, seconds=0.5)
     assert_same_states(reference.states, sim.rollout(reference.u_true[None])[0])
     assert reference.mask.all()
 
 
 def test_burst_circle_period_falls_from_5_to_1_2_s(sim):
-    reference = trajectories.burst_circle_reference(sim)
+    reference = data.burst_circle_reference(sim)
     path = reference.states[reference.mask]
     angular_rate = np.linalg.norm(path[:, 4:], axis=1) / 0.15
     np.testing.assert_allclose(2 * np.pi / angular_rate[[0, -1]], [5.0, 1.2], rtol=1e-3)
@@ -137,7 +139,7 @@ def test_coverage_is_high_in_distribution_and_zero_far_away(tmp_path):
 
 def test_unknown_shape_is_rejected(sim):
     with pytest.raises(ValueError, match="shape must be one of"):
-        trajectories.shape_reference(sim, "hexagon")
+        data.shape_reference(sim, "hexagon")
 
 
 def test_a_subset_trains_on_fewer_episodes_and_is_judged_on_the_same_ones(dataset):
@@ -151,10 +153,10 @@ def test_a_subset_trains_on_fewer_episodes_and_is_judged_on_the_same_ones(datase
 
 def test_hardware_burst_speeds_up_to_a_0_2_s_period_about_the_rest_tip():
     hw = Simulator(HW_ROBOT)
-    reference = trajectories.hardware_burst_reference(hw)
+    reference = data.hardware_burst_reference(hw)
     path = reference.states[reference.mask]
     rest_tip = hw.tip_positions(hw.rest_q()[None])[0, 1:]
     radius = np.linalg.norm(path[:, 1:3] - rest_tip, axis=1)
-    np.testing.assert_allclose(radius, trajectories.HARDWARE_BURST_RADIUS, rtol=1e-9)
-    angular_rate = np.linalg.norm(path[:, 4:], axis=1) / trajectories.HARDWARE_BURST_RADIUS
+    np.testing.assert_allclose(radius, data.HARDWARE_BURST_RADIUS, rtol=1e-9)
+    angular_rate = np.linalg.norm(path[:, 4:], axis=1) / data.HARDWARE_BURST_RADIUS
     np.testing.assert_allclose(2 * np.pi / angular_rate[[0, -1]], [5.0, 0.2], rtol=5e-3)  # to the sample

@@ -1,12 +1,40 @@
 """The tip estimator on synthetic camera tracks with a known truth: exact on the motion its
 model assumes, below the camera's noise on a circle, latency compensated by prediction, lost
 frames bridged."""
+
+import math
+
 import numpy as np
 import pytest
 
-from softflow.estimation import TipEstimator, estimate_track
+from softflow.checks import as_real_array
+from softflow.control.estimation import TipEstimator
 
 FPS, DT = 30.0, 0.01
+
+
+def estimate_track(frame_times, positions, times, latency: float = 0.0, **options) -> np.ndarray:
+    """What the loop would have estimated at each of ``times`` (s), (N, 6): frames taken at
+    ``frame_times`` (K,) with positions (K, 3) (NaN rows lost), each usable ``latency`` s after
+    it was taken. The loop calls ``TipEstimator`` itself; this replays it offline."""
+    frame_times, _ = as_real_array(frame_times, "frame_times", (None,))
+    positions = np.asarray(positions, float)
+    if positions.shape != (len(frame_times), 3):
+        raise ValueError(f"positions must have shape ({len(frame_times)}, 3); got {positions.shape}")
+    times, _ = as_real_array(times, "times", (None,))
+    if not (math.isfinite(latency) and latency >= 0):
+        raise ValueError(f"latency must be a non-negative number of seconds; got {latency!r}")
+    first = np.flatnonzero(np.isfinite(positions).all(1))
+    if not len(first):
+        raise ValueError("no frame found the marker")
+    estimator = TipEstimator(positions[first[0]], **options)
+    out, k = np.empty((len(times), 6)), 0
+    for i, t in enumerate(times):
+        while k < len(frame_times) and frame_times[k] + latency <= t + 1e-12:
+            estimator.update(frame_times[k], positions[k])
+            k += 1
+        out[i] = estimator.state(max(t, estimator.t if estimator.t is not None else t))
+    return out
 
 
 def circle(t, radius=0.05, speed=0.15):
@@ -18,7 +46,11 @@ def circle(t, radius=0.05, speed=0.15):
 
 def camera(truth_at, seconds, noise, rng, drop=0.0):
     frame_times = np.arange(0, seconds, 1 / FPS)
-    seen = truth_at(frame_times)[:, :3] + rng.normal(0, noise, (len(frame_times), 3)) if noise else truth_at(frame_times)[:, :3]
+    seen = (
+        truth_at(frame_times)[:, :3] + rng.normal(0, noise, (len(frame_times), 3))
+        if noise
+        else truth_at(frame_times)[:, :3]
+    )
     seen[rng.random(len(frame_times)) < drop] = np.nan
     return frame_times, seen
 

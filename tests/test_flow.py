@@ -1,18 +1,20 @@
 """The RF family: generative transport, the static prior, the consistency loss, sampling."""
+
 import dataclasses
 import warnings
 
 import numpy as np
 import pytest
 import torch
-
 from conftest import QUICK, SMALL
-from softflow import control, train
+
+from softflow import control, data, training
+from softflow.models import checkpoints
 from softflow.models.baselines import InverseMLP
 from softflow.models.common import one_thread
 from softflow.models.flow import RectifiedFlow
-from softflow.robots import SIM_ROBOT
-from softflow.sim import Simulator
+from softflow.rod.dynamics import Simulator
+from softflow.rod.robots import SIM_ROBOT, U_MAX
 
 
 def fit(model, window, u, steps=1500):
@@ -45,7 +47,7 @@ def test_rf_keeps_both_modes_where_regression_averages_them():
 
 def test_rf_learns_held_out_transitions(dataset, trained):
     model, _ = trained("rf")
-    window, u, _ = train.Sampler(dataset, dataset.test, 1, np.random.default_rng(0)).fixed(3000, 0)
+    window, u, _ = training.Sampler(dataset, dataset.test, 1, np.random.default_rng(0)).fixed(3000, 0)
     with torch.no_grad():
         mse = torch.mean((model.predict(window, noise=torch.zeros(len(window), 2)) - u) ** 2).item()
     assert mse < 0.5 * torch.var(u, dim=0).mean().item()
@@ -53,12 +55,12 @@ def test_rf_learns_held_out_transitions(dataset, trained):
 
 def test_rf_fwd_needs_its_trained_forward_surrogate_and_keeps_it_frozen(dataset, trained, tmp_path):
     with pytest.raises(ValueError, match=r"requires trained \['forward'\]"):
-        train.train("rf-fwd", dataset, QUICK, tmp_path / "rf-fwd.pt", progress=False)
+        training.train("rf-fwd", dataset, QUICK, tmp_path / "rf-fwd.pt", progress=False)
     model, _ = trained("rf-fwd")
     surrogate, _ = trained("forward")
     for a, b in zip(model.forward_model.state_dict().values(), surrogate.state_dict().values()):
         torch.testing.assert_close(a, b)  # unchanged by the RF-FWD training
-    window, u, _ = train.Sampler(dataset, dataset.test, 1, np.random.default_rng(0)).fixed(2000, 0)
+    window, u, _ = training.Sampler(dataset, dataset.test, 1, np.random.default_rng(0)).fixed(2000, 0)
     with torch.no_grad():
         predicted = surrogate.predict_next(window[:, 0], u)
     step = window[:, 1] - window[:, 0]
@@ -99,7 +101,9 @@ def test_plans_are_reproducible_and_noise_can_be_fresh(dataset, trained):
     np.testing.assert_array_equal(seeded, controller.plan(reference, noise="seeded"))
     assert not np.allclose(seeded, controller.plan(reference, noise="seeded", seed=4))
     assert not np.allclose(seeded, controller.plan(reference, noise="fresh"))
-    window = torch.as_tensor(train.gather_windows(reference[None], np.zeros(5, int), np.arange(5), 1), dtype=torch.float32)
+    window = torch.as_tensor(
+        data.gather_windows(reference[None], np.zeros(5, int), np.arange(5), 1), dtype=torch.float32
+    )
     with torch.no_grad():
         centre = model.predict(window, noise=torch.zeros(5, 2)).numpy()
     np.testing.assert_allclose(controller.plan(reference)[:5], centre, atol=1e-6)  # z = 0 by default
@@ -127,7 +131,7 @@ def test_lean_numpy_sampler_gives_the_torch_models_u(name, dataset, trained):
     from softflow.models.flow import LeanFlow
 
     model, _ = trained(name)
-    window, _, _ = train.Sampler(dataset, dataset.test, 1, np.random.default_rng(0)).fixed(500, 0)
+    window, _, _ = training.Sampler(dataset, dataset.test, 1, np.random.default_rng(0)).fixed(500, 0)
     z = torch.randn(500, 2)
     with torch.no_grad():
         expected = model.predict(window, noise=z, steps=6).numpy()
@@ -149,21 +153,21 @@ def test_lean_sampler_handles_the_physical_prior():
 
 
 def test_ensure_trained_uses_each_models_budget_and_reuses_the_checkpoint(dataset, tmp_path, monkeypatch):
-    monkeypatch.setattr(train, "TRAINED", tmp_path)
+    monkeypatch.setattr(checkpoints, "TRAINED", tmp_path)
     longer = dataclasses.replace(QUICK, epochs=4)
     profile = dataclasses.replace(SMALL, train=QUICK, per_step_train=longer)
-    _, checkpoint = train.ensure_trained("rf", profile, dataset)
+    _, checkpoint = training.ensure_trained("rf", profile, dataset)
     assert checkpoint["train_config"] == dataclasses.asdict(longer)  # a per-step model gets the longer budget
-    assert train.checkpoint_path("rf", profile.name) == tmp_path / "small" / "rf.pt"
+    assert checkpoints.checkpoint_path("rf", profile.name) == tmp_path / "small" / "rf.pt"
     stamp = (tmp_path / "small" / "rf.pt").stat().st_mtime_ns
-    train.ensure_trained("rf", profile, dataset)
+    training.ensure_trained("rf", profile, dataset)
     assert (tmp_path / "small" / "rf.pt").stat().st_mtime_ns == stamp  # reused, not retrained
 
 
 def test_rf_physical_plans_its_prior_plus_a_learned_residual(dataset, trained, table, monkeypatch):
     import copy
 
-    from softflow import statics
+    from softflow.rod import statics
 
     model, _ = trained("rf-physical")
     controller = control.Controller(model, "rf-physical")  # the dataset's rod: simulation, vertical
@@ -187,5 +191,5 @@ def test_rf_physical_plans_its_prior_plus_a_learned_residual(dataset, trained, t
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", control.SaturationWarning)  # the prior alone exceeds 4 N at times
         silent_plan = silent_controller.plan(states)
-    expected = np.clip(prior + silent.residual_norm.mean.numpy(), -control.U_MAX, control.U_MAX)
+    expected = np.clip(prior + silent.residual_norm.mean.numpy(), -U_MAX, U_MAX)
     np.testing.assert_allclose(silent_plan, expected, atol=1e-5)

@@ -1,14 +1,16 @@
 """Hardware twin: commands through the model, the cable-driven plant, files in and out."""
+
 import dataclasses
 
 import numpy as np
 import pytest
 
-from softflow import hardware, vision
-from softflow.data import DT, sum_of_sines_excitation
-from softflow.robots import HW_ROBOT
-from softflow.sim import Simulator
-from softflow.trajectories import Reference
+from softflow import hardware
+from softflow.data.excitation import sum_of_sines_excitation
+from softflow.data.references import Reference
+from softflow.hardware import vision
+from softflow.rod.dynamics import Simulator
+from softflow.rod.robots import DT, HW_ROBOT
 
 
 @pytest.fixture(scope="module", params=["vertical", "horizontal"])
@@ -88,7 +90,9 @@ def test_recordings_load_from_a_marker_csv_and_from_rgbd_frames(tmp_path):
 
     camera = hardware.twin_camera(sim, hardware.TYPICAL_GAP)
     centerlines, _ = sim.centerline(q)
-    vision.write_rgbd(tmp_path / "run.npz", times, vision.render(tips, camera, 0, centerlines=centerlines), camera)
+    vision.write_rgbd(
+        tmp_path / "run.npz", times, vision.render(tips, camera, 0, centerlines=centerlines, rod_diameter=0.004), camera
+    )
     _, tracked = hardware.load_recording(tmp_path / "run.npz")
     assert np.sqrt(np.mean(np.sum((tracked - tips) ** 2, axis=1))) < 1e-3
 
@@ -96,16 +100,21 @@ def test_recordings_load_from_a_marker_csv_and_from_rgbd_frames(tmp_path):
 MARKER_HEADER = "time_s,x_m,y_m,z_m\n"
 
 
-@pytest.mark.parametrize("rows, message", [
-    ("0.0,0.4,0,0\n0.033,inf,0,0\n", r"bad\.csv: data row 2, column 'x_m': 'inf' is not a finite number"),
-    ("0.0,0.4,0,0\ninf,0.4,0,0\n", r"bad\.csv: data row 2, column 'time_s': 'inf' is not a finite number"),
-    ("0.0,0.4,0,0\n0.033,0.4,abc,0\n", r"bad\.csv: data row 2, column 'y_m': 'abc' is not a finite number"),
-    ("0.0,0.4,0,0\n0.033,0.4,,0\n", r"bad\.csv: data row 2, column 'y_m': 'nan' is not a finite number"),
-    ("0.0,0.4,0,0\n0.066,0.4,0,0\n0.033,0.4,0,0\n",
-     r"bad\.csv: time_s must increase strictly; data row 3 \(0\.033\) does not follow row 2 \(0\.066\)"),
-    ("0.0,0.4,0,0\n0.033,0.4,0,0\n0.033,0.4,0,0\n", r"data row 3 \(0\.033\) does not follow row 2 \(0\.033\)"),
-    ("", r"bad\.csv: has a header but no samples"),
-])
+@pytest.mark.parametrize(
+    "rows, message",
+    [
+        ("0.0,0.4,0,0\n0.033,inf,0,0\n", r"bad\.csv: data row 2, column 'x_m': 'inf' is not a finite number"),
+        ("0.0,0.4,0,0\ninf,0.4,0,0\n", r"bad\.csv: data row 2, column 'time_s': 'inf' is not a finite number"),
+        ("0.0,0.4,0,0\n0.033,0.4,abc,0\n", r"bad\.csv: data row 2, column 'y_m': 'abc' is not a finite number"),
+        ("0.0,0.4,0,0\n0.033,0.4,,0\n", r"bad\.csv: data row 2, column 'y_m': 'nan' is not a finite number"),
+        (
+            "0.0,0.4,0,0\n0.066,0.4,0,0\n0.033,0.4,0,0\n",
+            r"bad\.csv: time_s must increase strictly; data row 3 \(0\.033\) does not follow row 2 \(0\.066\)",
+        ),
+        ("0.0,0.4,0,0\n0.033,0.4,0,0\n0.033,0.4,0,0\n", r"data row 3 \(0\.033\) does not follow row 2 \(0\.033\)"),
+        ("", r"bad\.csv: has a header but no samples"),
+    ],
+)
 def test_a_bad_marker_recording_names_the_file_and_the_row(tmp_path, rows, message):
     path = tmp_path / "bad.csv"
     path.write_text(MARKER_HEADER + rows)

@@ -1,12 +1,13 @@
 """System identification recovers a known reality gap from a filmed excitation of the twin's
 plant (an exact recording: the fit, not the camera, is under test here)."""
+
 import numpy as np
 import pytest
 
-from softflow import hardware, identification
-from softflow.data import DT
-from softflow.robots import HW_ROBOT
-from softflow.sim import Simulator
+from softflow import hardware
+from softflow.hardware import identification
+from softflow.rod.dynamics import Simulator
+from softflow.rod.robots import DT, HW_ROBOT
 
 
 def test_identify_recovers_e_eta_rho_and_the_motor_lag():
@@ -36,12 +37,15 @@ def test_identify_refuses_a_recording_without_enough_frames():
 def test_a_study_identifies_each_rig_once_and_reads_the_same_fit_back(tmp_path, monkeypatch):
     from softflow import studies
 
-    fit = identification.Identified(hardware.RealityGap(youngs_modulus=-0.12, damping=0.3, density=0.07,
-                                                        motor_lag=0.018), rmse_mm=1.1, evaluations=9)
+    fit = identification.Identified(
+        hardware.RealityGap(youngs_modulus=-0.12, damping=0.3, density=0.07, motor_lag=0.018),
+        rmse_mm=1.1,
+        evaluations=9,
+    )
     calls = []
     monkeypatch.setattr(identification, "identify_twin", lambda *args, **kw: calls.append(args) or fit)
     sim = Simulator(HW_ROBOT, "vertical")
-    first = studies._identified_twin(sim, hardware.TYPICAL_GAP, 3.0, tmp_path)
-    again = studies._identified_twin(sim, hardware.TYPICAL_GAP, 3.0, tmp_path)
-    other_gap = studies._identified_twin(sim, hardware.TYPICAL_GAP.doubled("slack"), 3.0, tmp_path)
+    first = studies.closed_loop._identified_twin(sim, hardware.TYPICAL_GAP, 3.0, tmp_path)
+    again = studies.closed_loop._identified_twin(sim, hardware.TYPICAL_GAP, 3.0, tmp_path)
+    other_gap = studies.closed_loop._identified_twin(sim, hardware.TYPICAL_GAP.doubled("slack"), 3.0, tmp_path)
     assert first == again == other_gap == fit and len(calls) == 2  # one run per gap, read back exactly

@@ -2,14 +2,15 @@
 open-loop plan, integral action removes a constant disturbance, the watchdog holds the
 command while the marker is lost, learning across repetitions shrinks the error, and bad
 input is refused before the first command."""
+
 import numpy as np
 import pytest
 
-from softflow import control, loop
-from softflow.data import DT
-from softflow.robots import SIM_ROBOT
-from softflow.sim import Simulator
-from softflow.trajectories import Reference, shape_reference
+from softflow import control
+from softflow.control import closed_loop
+from softflow.data.references import Reference, shape_reference
+from softflow.rod.dynamics import Simulator
+from softflow.rod.robots import DT, SIM_ROBOT
 
 
 class SimRig:
@@ -53,7 +54,7 @@ def hold(sim, u_target=(1.0, -0.5), steps=600):
 def test_without_correction_the_loop_sends_the_plan(sim, controller):
     reference = shape_reference(sim, "circle", size=0.04)
     rig = SimRig(sim)
-    run = loop.run_loop(controller, reference, rig.measure, rig.command, correction=loop.NO_CORRECTION)
+    run = closed_loop.run_loop(controller, reference, rig.measure, rig.command, correction=closed_loop.NO_CORRECTION)
     np.testing.assert_allclose(run.u, controller.plan(reference.states), atol=1e-4)
     assert (run.clipped, run.watchdog_events, run.lost_frames) == (0, 0, 0)
     np.testing.assert_allclose(run.estimates[1:, :3], sim.rollout(run.u[None])[0, 1:-1, :3], atol=2e-3)
@@ -62,9 +63,9 @@ def test_without_correction_the_loop_sends_the_plan(sim, controller):
 def test_integral_action_removes_a_constant_disturbance(sim, controller):
     reference = hold(sim)
     final = {}
-    for name, correction in (("none", loop.NO_CORRECTION), ("pi", loop.PI())):
+    for name, correction in (("none", closed_loop.NO_CORRECTION), ("pi", closed_loop.PI())):
         rig = SimRig(sim, disturbance=(0.4, 0.0))
-        loop.run_loop(controller, reference, rig.measure, rig.command, correction=correction)
+        closed_loop.run_loop(controller, reference, rig.measure, rig.command, correction=correction)
         final[name] = np.linalg.norm(sim.tip_positions(rig.q)[0] - reference.states[-1, :3])
     assert final["none"] > 0.01 and final["pi"] < 0.1 * final["none"]
 
@@ -72,7 +73,7 @@ def test_integral_action_removes_a_constant_disturbance(sim, controller):
 def test_the_watchdog_holds_while_the_marker_is_lost_and_survives_a_failing_camera(sim, controller):
     reference = shape_reference(sim, "circle", size=0.04)
     rig = SimRig(sim, blind=range(100, 130), fail={150, 151})
-    run = loop.run_loop(controller, reference, rig.measure, rig.command, watchdog_frames=5)
+    run = closed_loop.run_loop(controller, reference, rig.measure, rig.command, watchdog_frames=5)
     assert run.watchdog_events == 1 and run.lost_frames == 30 + 2
     assert run.held_steps == 30 - 5
     held = np.array(rig.sent[106:130])
@@ -81,8 +82,13 @@ def test_the_watchdog_holds_while_the_marker_is_lost_and_survives_a_failing_came
 
 def test_learning_across_repetitions_shrinks_the_error(sim, controller):
     reference = shape_reference(sim, "circle", size=0.04)
-    runs = loop.learn_by_repetition(controller, reference, lambda: SimRig(sim, disturbance=(0.2, -0.2)),
-                                    repetitions=3, correction=loop.NO_CORRECTION)
+    runs = closed_loop.learn_by_repetition(
+        controller,
+        reference,
+        lambda: SimRig(sim, disturbance=(0.2, -0.2)),
+        repetitions=3,
+        correction=closed_loop.NO_CORRECTION,
+    )
     assert len(runs) == 3
     rmse = []
     for run, _ in runs:
@@ -93,7 +99,7 @@ def test_learning_across_repetitions_shrinks_the_error(sim, controller):
 
 def test_learning_leaves_the_start_transient_of_a_displaced_rig_alone(sim, controller):
     """A rig that starts away from the reference's first state (a reality gap's sag) shows an
-    error no input removes at once; learnt, it pumps the first commands (loop.SETTLE)."""
+    error no input removes at once; learnt, it pumps the first commands (closed_loop.SETTLE)."""
     reference = shape_reference(sim, "circle", size=0.04)
     displaced = sim.static_q(np.array([[1.0, 0.0]]))
 
@@ -102,15 +108,16 @@ def test_learning_leaves_the_start_transient_of_a_displaced_rig_alone(sim, contr
         rig.q = displaced.copy()
         return rig
 
-    early = int(loop.SETTLE[0] / DT)
+    early = int(closed_loop.SETTLE[0] / DT)
     change = {}
-    for label, settle in (("ramped", loop.SETTLE), ("from the start", (0.0, DT))):
-        (first, _), (second, _) = loop.learn_by_repetition(controller, reference, make_rig, repetitions=2,
-                                                           settle=settle, correction=loop.NO_CORRECTION)
+    for label, settle in (("ramped", closed_loop.SETTLE), ("from the start", (0.0, DT))):
+        (first, _), (second, _) = closed_loop.learn_by_repetition(
+            controller, reference, make_rig, repetitions=2, settle=settle, correction=closed_loop.NO_CORRECTION
+        )
         change[label] = np.sqrt(np.mean((second.u[:early] - first.u[:early]) ** 2))
     assert change["ramped"] < 0.3 * change["from the start"]
     with pytest.raises(ValueError, match="settle"):
-        loop.learn_by_repetition(controller, reference, make_rig, settle=(1.0, 0.5))
+        closed_loop.learn_by_repetition(controller, reference, make_rig, settle=(1.0, 0.5))
 
 
 def test_bad_input_is_refused_before_the_first_command(sim, controller):
@@ -118,9 +125,9 @@ def test_bad_input_is_refused_before_the_first_command(sim, controller):
     in_mm = Reference("mm", "shape", reference.states * 1000, reference.mask)
     rig = SimRig(sim)
     with pytest.raises(ValueError, match="training standard deviations"):
-        loop.run_loop(controller, in_mm, rig.measure, rig.command)
+        closed_loop.run_loop(controller, in_mm, rig.measure, rig.command)
     assert rig.sent == []
     with pytest.raises(ValueError, match="feedforward"):
-        loop.run_loop(controller, reference, rig.measure, rig.command, feedforward=np.zeros((3, 2)))
+        closed_loop.run_loop(controller, reference, rig.measure, rig.command, feedforward=np.zeros((3, 2)))
     with pytest.raises(ValueError, match="PI gains"):
-        loop.PI(-1.0, 0.0)
+        closed_loop.PI(-1.0, 0.0)

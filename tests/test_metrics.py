@@ -1,9 +1,10 @@
 """Metrics against hand-worked cases."""
+
 import numpy as np
 import pytest
 
-from softflow.data import DT
-from softflow.metrics import actuation_mae, input_energy, latency, peak_speed, phase_lag, tracking_rmse
+from softflow.control.metrics import actuation_mae, input_energy, latency, peak_speed, phase_lag, tracking_rmse
+from softflow.rod.robots import DT
 
 
 def test_rmse_of_a_hand_worked_case_ignores_masked_samples():
@@ -61,8 +62,8 @@ def test_bad_inputs_are_rejected():
 def test_a_short_reference_gets_a_phase_lag_over_fewer_shifts():
     """A fast shape can be shorter than the 0.5 s lag window needs (103 samples): its lag is
     searched over the shifts that fit, and a delayed copy still shows its delay."""
-    from softflow.control import score
-    from softflow.trajectories import Reference
+    from softflow.control.planning import score
+    from softflow.data.references import Reference
 
     t = np.arange(80) * DT
     reference = np.zeros((80, 6))

@@ -1,17 +1,19 @@
 """Inverse models, the shared training loop and open-loop control."""
+
 import dataclasses
 import warnings
 
 import numpy as np
 import pytest
 import torch
-
 from conftest import QUICK, SMALL
-from softflow import control, data, models, train, trajectories
+
+from softflow import control, data, models, training
+from softflow.models import checkpoints
 from softflow.models.baselines import InverseMLP
 from softflow.models.common import Normalizer
-from softflow.robots import SIM_ROBOT
-from softflow.sim import Simulator
+from softflow.rod.dynamics import Simulator
+from softflow.rod.robots import DT, SIM_ROBOT, U_MAX
 
 
 def test_normalizer_round_trip_and_constant_channel_guard():
@@ -24,14 +26,14 @@ def test_normalizer_round_trip_and_constant_channel_guard():
 
 def test_windows_repeat_the_rest_state_before_the_start():
     states = np.arange(2 * 5 * 6, dtype=float).reshape(2, 5, 6)
-    window = train.gather_windows(states, [1], [1], context=3)[0]
+    window = data.gather_windows(states, [1], [1], context=3)[0]
     np.testing.assert_array_equal(window, states[1, [0, 0, 1, 2]])
 
 
 @pytest.mark.parametrize("name", ["mlp", "lstm", "transformer"])
 def test_training_beats_the_mean_on_held_out_episodes(name, dataset, trained):
     model, checkpoint = trained(name)
-    window, u, _ = train.Sampler(dataset, dataset.test, model.context, np.random.default_rng(0)).fixed(3000, 0)
+    window, u, _ = training.Sampler(dataset, dataset.test, model.context, np.random.default_rng(0)).fixed(3000, 0)
     with torch.no_grad():
         held_out_mse = torch.mean((model.predict(window) - u) ** 2).item()
     variance = torch.var(u, dim=0).sum().item() / 2
@@ -40,7 +42,7 @@ def test_training_beats_the_mean_on_held_out_episodes(name, dataset, trained):
 
 
 def test_an_interrupted_run_resumes_to_the_same_weights(dataset, tmp_path, monkeypatch):
-    reference, _ = train.train("mlp", dataset, QUICK, tmp_path / "straight.pt", progress=False)
+    reference, _ = training.train("mlp", dataset, QUICK, tmp_path / "straight.pt", progress=False)
     calls = {"n": 0}
     real_loss = InverseMLP.compute_loss
 
@@ -52,10 +54,10 @@ def test_an_interrupted_run_resumes_to_the_same_weights(dataset, tmp_path, monke
 
     monkeypatch.setattr(InverseMLP, "compute_loss", interrupt_in_epoch_two)
     with pytest.raises(KeyboardInterrupt):
-        train.train("mlp", dataset, QUICK, tmp_path / "resumed.pt", progress=False)
+        training.train("mlp", dataset, QUICK, tmp_path / "resumed.pt", progress=False)
     assert (tmp_path / "resumed.pt.latest").exists() and not (tmp_path / "resumed.pt").exists()
     monkeypatch.setattr(InverseMLP, "compute_loss", real_loss)
-    resumed, _ = train.train("mlp", dataset, QUICK, tmp_path / "resumed.pt", progress=False)
+    resumed, _ = training.train("mlp", dataset, QUICK, tmp_path / "resumed.pt", progress=False)
     for a, b in zip(reference.state_dict().values(), resumed.state_dict().values()):
         torch.testing.assert_close(a, b)
 
@@ -64,22 +66,22 @@ def test_a_changed_default_retrains_instead_of_reusing_the_checkpoint(dataset, t
     """The checkpoint records every constructor argument, registry and class defaults
     included, so a new default cannot silently reuse weights trained with the old one."""
     path = tmp_path / "mlp.pt"
-    _, first = train.train("mlp", dataset, QUICK, path, progress=False)
+    _, first = training.train("mlp", dataset, QUICK, path, progress=False)
     assert first["model_kwargs"] == {"hidden": 256, "layers": 3}
     stamp = path.stat().st_mtime_ns
-    train.train("mlp", dataset, QUICK, path, progress=False)
+    training.train("mlp", dataset, QUICK, path, progress=False)
     assert path.stat().st_mtime_ns == stamp  # same arguments: reused
     monkeypatch.setitem(models.MODELS, "mlp", models.ModelSpec(InverseMLP, {"hidden": 32}))
-    model, second = train.train("mlp", dataset, QUICK, path, progress=False)
+    model, second = training.train("mlp", dataset, QUICK, path, progress=False)
     assert second["model_kwargs"] == {"hidden": 32, "layers": 3} and model.net[0].out_features == 32
 
 
 def test_a_size_variant_trains_beside_the_default_model(dataset, tmp_path, monkeypatch):
-    monkeypatch.setattr(train, "TRAINED", tmp_path)
+    monkeypatch.setattr(checkpoints, "TRAINED", tmp_path)
     profile = dataclasses.replace(SMALL, train=QUICK)
-    _, variant = train.ensure_trained("mlp", profile, dataset, model_kwargs={"hidden": 32})
+    _, variant = training.ensure_trained("mlp", profile, dataset, model_kwargs={"hidden": 32})
     assert (tmp_path / "small" / "variants" / "mlp-hidden32.pt").exists() and variant["model_kwargs"]["hidden"] == 32
-    assert train.checkpoint_path("mlp", "small", model_kwargs={"hidden": 256}) == tmp_path / "small" / "mlp.pt"
+    assert checkpoints.checkpoint_path("mlp", "small", model_kwargs={"hidden": 256}) == tmp_path / "small" / "mlp.pt"
 
 
 def test_unknown_model_arguments_are_a_value_error():
@@ -91,11 +93,11 @@ def test_a_corrupt_checkpoint_is_reported_by_path(tmp_path):
     path = tmp_path / "mlp.pt"
     path.write_bytes(b"not a checkpoint")
     with pytest.raises(ValueError, match=str(path)):
-        train.load_checkpoint(path)
+        checkpoints.load_checkpoint(path)
 
 
 def test_missing_controller_names_the_command_that_trains_it(tmp_path, monkeypatch):
-    monkeypatch.setattr(train, "TRAINED", tmp_path)
+    monkeypatch.setattr(checkpoints, "TRAINED", tmp_path)
     with pytest.raises(ValueError, match="python -m softflow train --profile ci mlp"):
         control.load_controller("mlp", profile="ci")
     with pytest.raises(ValueError, match="profile must be one of"):
@@ -116,6 +118,7 @@ def test_plan_shapes_and_batching(dataset, trained):
 
 class _Oracle:
     """Returns the true actuation of an actuated reference."""
+
     name = "oracle"
 
     def __init__(self, references):
@@ -127,18 +130,21 @@ class _Oracle:
 
 def test_evaluate_scores_a_perfect_plan_as_perfect():
     sim = Simulator(SIM_ROBOT)
-    references = trajectories.random_references(sim, n=2, seconds=2.0)
+    references = data.random_references(sim, n=2, seconds=2.0)
     results, runs = control.evaluate(_Oracle(references), references, sim)
     assert results.rmse_mm.max() < 1e-6
     assert results.mae_u1.max() == 0 and abs(results.phase_lag_s).max() < 1e-3
-    np.testing.assert_allclose(results.input_energy, [np.sum(r.u_true**2) * data.DT for r in references])
+    np.testing.assert_allclose(results.input_energy, [np.sum(r.u_true**2) * DT for r in references])
 
 
 def test_plan_refuses_references_outside_the_training_workspace(dataset, trained):
     controller = control.Controller(trained("mlp")[0], "mlp")
     reference = dataset.states[0]
-    with pytest.raises(ValueError, match=r"reference tip position x = 400 m at index \(0, 0\) is \d+ training "
-                                         r"standard deviations .* is it in metres"):
+    with pytest.raises(
+        ValueError,
+        match=r"reference tip position x = 400 m at index \(0, 0\) is \d+ training "
+        r"standard deviations .* is it in metres",
+    ):
         controller.plan(reference * 1e3)  # millimetres
     with pytest.raises(ValueError, match="at least one trajectory"):
         controller.plan(np.zeros((0, 5, 6)))
@@ -169,10 +175,10 @@ def test_a_plan_beyond_the_actuator_range_is_clipped_with_a_counted_warning(data
     reference = dataset.states[0, :20]
     with pytest.warns(control.SaturationWarning, match=r"mlp: \d+ of 38 planned u values exceed the actuator range"):
         u = controller.plan(reference)
-    assert np.abs(u).max() == data.U_MAX
+    assert np.abs(u).max() == U_MAX
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        plans, _ = control.plan_all(controller, [trajectories.Reference("jump", "shape", reference, np.ones(20, bool))])
+        plans, _ = control.plan_all(controller, [data.Reference("jump", "shape", reference, np.ones(20, bool))])
     np.testing.assert_array_equal(plans[0], u)  # evaluations clip silently: saturation is what they measure
 
 
@@ -220,6 +226,4 @@ def test_mlp_physical_regresses_the_residual_around_the_static_prior(dataset, tr
             silent.net[-1].weight.zero_()
             silent.net[-1].bias.zero_()
         u = control.Controller(silent, "silent").plan(states)
-    np.testing.assert_allclose(u, np.clip(prior + silent.residual_norm.mean.numpy(), -control.U_MAX, control.U_MAX),
-                               atol=1e-5)
-
+    np.testing.assert_allclose(u, np.clip(prior + silent.residual_norm.mean.numpy(), -U_MAX, U_MAX), atol=1e-5)

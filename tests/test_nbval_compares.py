@@ -1,4 +1,5 @@
 """nbval must really compare outputs: a notebook whose stored number was altered fails."""
+
 import subprocess
 import sys
 from pathlib import Path
@@ -10,8 +11,12 @@ STORED = "EI=0.02513 N m^2"  # printed by the robot-parameters cell of notebook 
 
 
 def run_nbval(path: Path) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--nbval",
-                           "--nbval-current-env", str(path)], capture_output=True, text=True, cwd=path.parent)
+    return subprocess.run(
+        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--nbval", "--nbval-current-env", str(path)],
+        capture_output=True,
+        text=True,
+        cwd=path.parent,
+    )
 
 
 def first_cells_through(marker: str):

@@ -1,13 +1,15 @@
 """The protocol's open choices, each checked on what it must do to a reference: the lifts
 against the statics lift they replace, starting on the path from the path's own first
 pose, and coverage on states that are (or are far from) training states."""
+
 import numpy as np
 import pytest
 
-from softflow import protocol, trajectories
-from softflow.robots import SIM_ROBOT
-from softflow.sim import Simulator
-from softflow.trajectories import Reference
+from softflow import data
+from softflow.data.references import Reference
+from softflow.rod.dynamics import Simulator
+from softflow.rod.robots import SIM_ROBOT
+from softflow.studies import protocol
 
 
 @pytest.fixture(scope="module")
@@ -17,7 +19,7 @@ def sim():
 
 @pytest.fixture(scope="module")
 def circle(sim):
-    return trajectories.shape_reference(sim, "circle", size=0.08)
+    return data.shape_reference(sim, "circle", size=0.08)
 
 
 def test_lifts_change_only_what_they_name(sim, circle):
@@ -50,7 +52,7 @@ def test_approach_scored_or_replaced_by_starting_on_the_path(sim, circle):
 
 
 def test_actuation_made_references_keep_their_states(sim):
-    (random,) = trajectories.random_references(sim, 1, seconds=1.0)
+    (random,) = data.random_references(sim, 1, seconds=1.0)
     kept, _ = protocol.apply(sim, [random], protocol.Protocol(lift="zero-velocity"))
     assert kept[0] is random
     with pytest.raises(ValueError, match="structured paths only"):

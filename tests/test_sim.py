@@ -1,12 +1,21 @@
 """The GVS simulator against closed-form and independent mechanics (issue: simulator checks 1-8)."""
+
 import numpy as np
 import pytest
 
-from softflow.validation import (MM, arc_tip, convergence_study, euler_bernoulli_frequencies, heavy_cantilever_tip,
-                                kelvin_voigt_damping_ratio, linear_modes, released_energy)
-from softflow.data import sum_of_sines_excitation
-from softflow.robots import HW_ROBOT, SIM_ROBOT
-from softflow.sim import Simulator
+from softflow.data.excitation import sum_of_sines_excitation
+from softflow.rod.dynamics import Simulator
+from softflow.rod.robots import HW_ROBOT, SIM_ROBOT
+from softflow.rod.validation import (
+    MM,
+    arc_tip,
+    convergence_study,
+    euler_bernoulli_frequencies,
+    heavy_cantilever_tip,
+    kelvin_voigt_damping_ratio,
+    linear_modes,
+    released_energy,
+)
 
 
 @pytest.mark.parametrize("direction", [(1, 0), (0, 1), (-1, 0), (0, -1), (np.sqrt(0.5), np.sqrt(0.5))])
@@ -64,8 +73,9 @@ def test_energy_terms_are_consistent():
     rng = np.random.default_rng(0)
     q, qd, qdd = rng.normal(size=(3, 2, sim.nq))
     h = 1e-6
-    kinetic = lambda t: 0.5 * np.einsum("bi,bij,bj->b", qd + t * qdd, sim.mass_matrix(q + t * qd + 0.5 * t * t * qdd),
-                                        qd + t * qdd)
+    kinetic = lambda t: (
+        0.5 * np.einsum("bi,bij,bj->b", qd + t * qdd, sim.mass_matrix(q + t * qd + 0.5 * t * t * qdd), qd + t * qdd)
+    )
     numeric = (kinetic(h) - kinetic(-h)) / (2 * h)
     f, Jp, M, _ = sim._dynamics_terms(q)
     c = sim._convective_force(Jp, q, qd, f["positions"])
@@ -100,8 +110,9 @@ def test_horizontal_sag_matches_the_heavy_elastica():
 
 def test_tip_converges_with_basis_order_and_step(random_actuation):
     u = random_actuation[:1, :300]  # 3 s of one episode (notebook 01 runs the full study)
-    errors = convergence_study(SIM_ROBOT, u, dict(order=7, n_segments=64, substeps=8),
-                               {"order": [dict(order=k) for k in range(4)]})["order"]
+    errors = convergence_study(
+        SIM_ROBOT, u, dict(order=7, n_segments=64, substeps=8), {"order": [dict(order=k) for k in range(4)]}
+    )["order"]
     assert all(later < earlier for earlier, later in zip(errors, errors[1:])), errors
     assert errors[-1] < 0.5 * MM  # the default order
     halved = convergence_study(SIM_ROBOT, u, {}, {"substeps": [dict(substeps=8)]})["substeps"][0]
@@ -123,22 +134,27 @@ def test_rollout_starts_at_rest_in_gravity_equilibrium():
     np.testing.assert_allclose(X[:, :, 3:], 0, atol=1e-12)  # measured 0 m and 7e-16 m/s
 
 
-@pytest.mark.parametrize("bad, message", [
-    (np.full((1, 5, 2), np.nan), "finite"),
-    (np.full((1, 5, 2), np.inf), "finite"),
-    (np.zeros((5, 2)), r"shape \(any, any, 2\)"),
-    (np.zeros((1, 5, 3)), r"shape \(any, any, 2\)"),
-    (np.zeros((1, 5, 2), dtype=complex), "real numbers"),
-    (np.zeros((1, 5, 2), dtype=bool), "real numbers"),
-    ([["a", "b"]], "real numbers"),
-])
+@pytest.mark.parametrize(
+    "bad, message",
+    [
+        (np.full((1, 5, 2), np.nan), "finite"),
+        (np.full((1, 5, 2), np.inf), "finite"),
+        (np.zeros((5, 2)), r"shape \(any, any, 2\)"),
+        (np.zeros((1, 5, 3)), r"shape \(any, any, 2\)"),
+        (np.zeros((1, 5, 2), dtype=complex), "real numbers"),
+        (np.zeros((1, 5, 2), dtype=bool), "real numbers"),
+        ([["a", "b"]], "real numbers"),
+    ],
+)
 def test_rollout_rejects_bad_input(bad, message):
     with pytest.raises(ValueError, match=message):
         Simulator(SIM_ROBOT).rollout(bad)
 
 
-@pytest.mark.parametrize("call, arg", [("static_tip", np.zeros((2, 3))), ("inverse_static", np.zeros((2, 2))),
-                                       ("static_tip", np.array([[np.nan, 0.0]]))])
+@pytest.mark.parametrize(
+    "call, arg",
+    [("static_tip", np.zeros((2, 3))), ("inverse_static", np.zeros((2, 2))), ("static_tip", np.array([[np.nan, 0.0]]))],
+)
 def test_statics_reject_bad_input(call, arg):
     with pytest.raises(ValueError):
         getattr(Simulator(SIM_ROBOT), call)(arg)

@@ -1,24 +1,27 @@
 """What users of the simulator rely on: the numbers of the simulator before it was split
 (golden file), equilibria that rollouts settle on, results that do not depend on how the
 batch is scheduled, and clear errors for input that cannot be right."""
+
 import numpy as np
 import pytest
-
 from make_sim_golden import GOLDEN, golden_outputs
-from softflow.robots import HW_ROBOT, SIM_ROBOT
-from softflow.sim import Simulator
+
+from softflow.rod.dynamics import Simulator
+from softflow.rod.robots import HW_ROBOT, SIM_ROBOT
 
 
 def test_simulator_reproduces_the_golden_file_made_before_the_split():
-    """Rollouts and equilibria to 1e-12 (today: bit-identical and 6e-16). The Gauss-Newton
-    results stop at |du| < 1e-10, so they are compared at that tolerance (today 2e-12 N; the
-    lift Jacobian, through a 1e-6 forward difference of gravity, 1.5e-11)."""
+    """Rollouts and equilibria to 1e-8 m: bit-identical on the machine that wrote the file, but
+    BLAS kernels differ across CPUs (an AVX-512 Xeon gives rollouts 1.9e-9 m away, the old flat
+    package as much as the new one), while any change of the mechanics moves them by far more.
+    The Gauss-Newton results stop at |du| < 1e-10, so they are compared at that tolerance (the
+    lift Jacobian, through a 1e-6 forward difference of gravity, differs by 1.5e-11)."""
     expected = np.load(GOLDEN)
     actual = golden_outputs()
     assert sorted(actual) == sorted(expected.files)
     for key in expected.files:
         solved = key.endswith(("inverse_static", "lift_u", "lift_jacobian"))
-        np.testing.assert_allclose(actual[key], expected[key], rtol=0, atol=1e-10 if solved else 1e-12, err_msg=key)
+        np.testing.assert_allclose(actual[key], expected[key], rtol=0, atol=1e-10 if solved else 1e-8, err_msg=key)
 
 
 @pytest.mark.parametrize("gravity", ["vertical", "horizontal"])
@@ -39,14 +42,17 @@ def test_a_rollout_does_not_depend_on_threads_or_chunk_size():
         np.testing.assert_allclose(X, reference, rtol=0, atol=1e-12)
 
 
-@pytest.mark.parametrize("kwargs, message", [
-    (dict(robot=None), "robot must be a softflow.robots.Robot"),
-    (dict(chunk_size=0), "chunk_size must be an integer >= 1; got 0"),
-    (dict(threads=0), "threads must be an integer >= 1; got 0"),
-    (dict(dt="0.01"), "dt must be a positive number of seconds; got '0.01'"),
-    (dict(dt=float("nan")), "dt must be a positive number"),
-    (dict(dt=-0.01), "dt must be a positive number"),
-])
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        (dict(robot=None), "robot must be a softflow.robots.Robot"),
+        (dict(chunk_size=0), "chunk_size must be an integer >= 1; got 0"),
+        (dict(threads=0), "threads must be an integer >= 1; got 0"),
+        (dict(dt="0.01"), "dt must be a positive number of seconds; got '0.01'"),
+        (dict(dt=float("nan")), "dt must be a positive number"),
+        (dict(dt=-0.01), "dt must be a positive number"),
+    ],
+)
 def test_simulator_options_are_checked(kwargs, message):
     kwargs = {"robot": SIM_ROBOT, **kwargs}
     with pytest.raises(ValueError, match=message):
@@ -65,16 +71,22 @@ def test_an_empty_batch_or_an_impossible_actuation_is_refused():
         sim.inverse_static(np.zeros((0, 3)))
 
 
-@pytest.mark.parametrize("point, nearest_mm", [
-    ([120.0, 50.0, 0.0], r"\d{5,}\.\d mm"),  # millimetres for metres
-    ([0.0, 0.0, 0.0], r"400\.0 mm"),  # the base: the arc start sits on a stationary point
-    ([-0.3, 0.05, 0.0], r"\d+\.\d mm"),  # behind the base
-])
+@pytest.mark.parametrize(
+    "point, nearest_mm",
+    [
+        ([120.0, 50.0, 0.0], r"\d{5,}\.\d mm"),  # millimetres for metres
+        ([0.0, 0.0, 0.0], r"400\.0 mm"),  # the base: the arc start sits on a stationary point
+        ([-0.3, 0.05, 0.0], r"\d+\.\d mm"),  # behind the base
+    ],
+)
 def test_inverse_statics_of_an_unreachable_point_names_the_nearest_equilibrium(point, nearest_mm):
     sim = Simulator(SIM_ROBOT)
     reachable = sim.static_tip(np.array([[1.0, -1.0]]))
-    with pytest.raises(ValueError, match=r"p\[1\] = .* is outside the static workspace: the nearest equilibrium "
-                                         r"found \(\|u\| <= 14.4 N\) is " + nearest_mm):
+    with pytest.raises(
+        ValueError,
+        match=r"p\[1\] = .* is outside the static workspace: the nearest equilibrium "
+        r"found \(\|u\| <= 14.4 N\) is " + nearest_mm,
+    ):
         sim.inverse_static(np.concatenate([reachable, [point]]))
 
 

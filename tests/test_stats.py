@@ -1,11 +1,12 @@
 """Bootstrap intervals on hand-worked grids: a constant has no width, the width of a mean
 of normal draws is 1.96 sigma / sqrt(n), seeds are resampled, and pairing over references
 removes what both models share."""
+
 import numpy as np
 import pandas as pd
 import pytest
 
-from softflow import stats
+from softflow.studies import stats
 
 
 def test_a_constant_has_a_zero_width_interval():
@@ -39,8 +40,14 @@ def test_a_difference_is_paired_over_references():
 
 
 def test_rows_become_grids_summaries_and_differences():
-    rows = pd.DataFrame([dict(model=m, seed=s, reference=f"R{r}", family="random", rmse_mm=v + r + 0.1 * s)
-                         for m, v in (("mlp", 1.0), ("rf", 3.0)) for s in range(2) for r in range(4)])
+    rows = pd.DataFrame(
+        [
+            dict(model=m, seed=s, reference=f"R{r}", family="random", rmse_mm=v + r + 0.1 * s)
+            for m, v in (("mlp", 1.0), ("rf", 3.0))
+            for s in range(2)
+            for r in range(4)
+        ]
+    )
     grid = stats.seed_reference_grid(rows[rows.model == "mlp"], "rmse_mm")
     np.testing.assert_allclose(grid, [[1, 2, 3, 4], [1.1, 2.1, 3.1, 4.1]])
     table = stats.summarise(rows)

@@ -1,4 +1,5 @@
 """Cache keys follow the numbers, not the source text; writes are all-or-nothing."""
+
 import dataclasses
 import shutil
 import subprocess
@@ -8,9 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from softflow import data, sim, store
+from softflow import data, store
+from softflow.data import dataset
 from softflow.profiles import get_profile
-from softflow.robots import SIM_ROBOT
+from softflow.rod import dynamics
+from softflow.rod.robots import SIM_ROBOT
 
 PAPER = get_profile("paper")
 
@@ -52,24 +55,26 @@ def test_dataset_key_follows_parameters_and_versions_not_the_name(monkeypatch):
     assert data.dataset_path(PAPER, dataclasses.replace(SIM_ROBOT, name="renamed")).stem == key
     assert data.dataset_path(PAPER, dataclasses.replace(SIM_ROBOT, density=12001.0)).stem != key
     assert data.dataset_path(PAPER, gravity="horizontal").stem != key
-    monkeypatch.setattr(sim, "SIMULATOR_VERSION", sim.SIMULATOR_VERSION + 1)
+    monkeypatch.setattr(dynamics, "SIMULATOR_VERSION", dynamics.SIMULATOR_VERSION + 1)
     assert data.dataset_path(PAPER).stem != key
     monkeypatch.undo()
-    monkeypatch.setattr(data, "DATA_VERSION", data.DATA_VERSION + 1)
+    monkeypatch.setattr(dataset, "DATA_VERSION", dataset.DATA_VERSION + 1)
     assert data.dataset_path(PAPER).stem != key
 
 
 def test_editing_comments_and_docstrings_keeps_the_dataset_key(tmp_path):
     """A copy of the package with a comment and a docstring edited gives the same key."""
-    package = Path(sim.__file__).parent
+    package = Path(dynamics.__file__).parent.parent
     copy = tmp_path / "softflow"
     shutil.copytree(package, copy, ignore=shutil.ignore_patterns("__pycache__"))
-    for name in ("sim.py", "data.py", "kinematics.py", "statics.py"):
+    for name in ("rod/dynamics.py", "data/dataset.py", "rod/kinematics.py", "rod/statics.py"):
         source = (copy / name).read_text()
         (copy / name).write_text(source.replace('"""', '"""Edited. ', 1) + "\n# an edited comment\n")
-    code = ("from softflow import data; from softflow.profiles import get_profile; "
-            "print(data.__file__); print(data.dataset_path(get_profile('paper')).stem)")
+    code = (
+        "from softflow import data; from softflow.profiles import get_profile; "
+        "print(data.__file__); print(data.dataset_path(get_profile('paper')).stem)"
+    )
     out = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, check=True)
     origin, key = out.stdout.split()
-    assert Path(origin).parent == copy  # the edited copy was imported
+    assert Path(origin).parent.parent == copy  # the edited copy was imported
     assert key == data.dataset_path(PAPER).stem

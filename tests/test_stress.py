@@ -1,11 +1,12 @@
 """Stress-test bookkeeping against hand-worked cases: revolutions, per-revolution RMSE, break points, spread."""
+
 import numpy as np
 import pandas as pd
 import pytest
 
-from softflow import stress
-from softflow.data import DT
-from softflow.trajectories import Reference
+from softflow.data.references import Reference
+from softflow.rod.robots import DT
+from softflow.studies import stress
 
 
 def circle(turns=3.5, period=1.0, approach=10, radius=0.1):
@@ -63,7 +64,9 @@ def test_spread_and_its_correlation_with_error():
     samples = np.array([[[1.0, 0.0]], [[3.0, 0.0]]])  # two draws of one step: std 1 N on u_1
     np.testing.assert_allclose(stress.actuation_spread(samples), [1.0])
     names = ["a", "b", "c", "d"]
-    correlation = stress.spread_vs_error(pd.Series([0.1, 0.2, 0.3, 0.4], names), pd.Series([1.0, 4.0, 9.0, 16.0], names))
+    correlation = stress.spread_vs_error(
+        pd.Series([0.1, 0.2, 0.3, 0.4], names), pd.Series([1.0, 4.0, 9.0, 16.0], names)
+    )
     assert correlation["n"] == 4 and correlation["spearman"] == pytest.approx(1.0)
     with pytest.raises(ValueError, match="shape"):
         stress.actuation_spread(samples[:1])

@@ -1,4 +1,5 @@
 """The studies' shared measurements (``softflow.studies``), on the small test dataset."""
+
 from dataclasses import replace
 
 import numpy as np
@@ -20,15 +21,16 @@ def test_held_out_error_is_measured_beyond_the_workspace_and_leaves_the_controll
     by_hand = np.sqrt(np.mean([np.mean((p - u) ** 2) for p, u in zip(planned, dataset.u[dataset.test])]))
     np.testing.assert_allclose(error, by_hand, rtol=1e-12)
     assert controller.workspace_margin == control.WORKSPACE_MARGIN  # the user's controller still refuses them
-    np.testing.assert_array_equal(studies.held_out_plan(controller, dataset)[0],
-                                  controller.plan(dataset.states[dataset.test]))
+    np.testing.assert_array_equal(
+        studies.held_out_plan(controller, dataset)[0], controller.plan(dataset.states[dataset.test])
+    )
 
 
 def test_the_consistency_floor_is_the_surrogates_own_error_at_the_true_u(dataset, trained):
     forward, _ = trained("forward")
-    floor = studies.consistency_floor(forward, dataset, points=500)
+    floor = studies.fwd_lambda.consistency_floor(forward, dataset, points=500)
 
-    x, x_next, u = studies._diagnostic_transitions(dataset, 500, np.random.default_rng(0))
+    x, x_next, u = studies.fwd_lambda._diagnostic_transitions(dataset, 500, np.random.default_rng(0))
     assert len(x) == 500
     with torch.inference_mode():
         loss = forward.compute_loss(torch.stack([x, x_next], 1), u)

@@ -1,6 +1,7 @@
 """The sweep runner: a cluster gives the rows of a sequential run, a rerun computes nothing,
 a failing cell is named while the others return, and the CLI runs on a cluster someone
 else started (through its scheduler file)."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -9,7 +10,9 @@ import pandas as pd
 import pytest
 from distributed import Client, LocalCluster
 
-from softflow import cli, sweep
+from softflow import cli
+from softflow.studies import sweep
+from softflow.studies.study import Study
 
 
 @pytest.fixture(scope="module")
@@ -22,14 +25,24 @@ def client(scheduler_file):
     """Two single-threaded worker processes, shared by the tests (starting one takes seconds).
     Its scheduler writes ``scheduler_file`` on start, as ``dask scheduler --scheduler-file`` does
     (``Client.write_scheduler_file`` can fail on worker metrics with tuple keys once tasks ran)."""
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
-                      scheduler_kwargs=dict(scheduler_file=str(scheduler_file))) as cluster, Client(cluster) as client:
+    with (
+        LocalCluster(
+            n_workers=2,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
+            scheduler_kwargs=dict(scheduler_file=str(scheduler_file)),
+        ) as cluster,
+        Client(cluster) as client,
+    ):
         yield client
 
 
 def _flaky_cells(profile_name):
-    return [dict(study="flaky", model="none", seed=seed, condition=condition)
-            for seed, condition in [(0, "ok"), (1, "bad"), (2, "ok")]]
+    return [
+        dict(study="flaky", model="none", seed=seed, condition=condition)
+        for seed, condition in [(0, "ok"), (1, "bad"), (2, "ok")]
+    ]
 
 
 def _flaky_run(cell, profile_name, device, workdir, key):
@@ -69,15 +82,18 @@ def test_rerun_computes_nothing_and_resumes_a_missing_cell(tmp_path, monkeypatch
 
     (tmp_path / "smoke" / f"{first.rows['key'][0]}.json").unlink()  # as if interrupted before this cell finished
     calls = []
-    monkeypatch.setitem(sweep.STUDIES, "smoke", dataclasses.replace(
-        smoke, run_cell=lambda cell, *args: calls.append(cell) or smoke.run_cell(cell, *args)))
+    monkeypatch.setitem(
+        sweep.STUDIES,
+        "smoke",
+        dataclasses.replace(smoke, run_cell=lambda cell, *args: calls.append(cell) or smoke.run_cell(cell, *args)),
+    )
     resumed = sweep.run_sweep("smoke", "ci", client=None, device="cpu", root=tmp_path, progress=False)
     assert (resumed.computed, len(calls), resumed.failures) == (1, 1, [])
     pd.testing.assert_frame_equal(measured(first.rows), measured(resumed.rows))
 
 
 def test_failing_cell_is_named_and_the_others_return(client, tmp_path, monkeypatch, capsys):
-    monkeypatch.setitem(sweep.STUDIES, "flaky", sweep.Study(_flaky_cells, _flaky_run))
+    monkeypatch.setitem(sweep.STUDIES, "flaky", Study(_flaky_cells, _flaky_run))
     result = sweep.run_sweep("flaky", "ci", client=client, device="cpu", root=tmp_path, progress=False)
     assert result.failures == [sweep.Failure(_flaky_cells("ci")[1], "RuntimeError: cell exploded")]
     assert result.rows["score"].tolist() == [0, 20]
@@ -116,7 +132,7 @@ def test_cells_with_several_rows_ship_and_read_back_from_the_shipped_csv(tmp_pat
     cache) those rows count as cached, unless the sweep is told to recompute them."""
     monkeypatch.setattr(sweep, "SWEEPS_DIR", tmp_path / "cache")
     monkeypatch.setattr(sweep, "SHIPPED_RESULTS", tmp_path / "shipped")
-    monkeypatch.setitem(sweep.STUDIES, "multi", sweep.Study(_per_reference_cells, _per_reference_run))
+    monkeypatch.setitem(sweep.STUDIES, "multi", Study(_per_reference_cells, _per_reference_run))
     first = sweep.run_sweep("multi", "paper", client=None, device="cpu", progress=False)
     assert first.rows["score"].tolist() == [0, 0.25, 0.5, 1, 1.25, 1.5]
     assert first.rows["reference"].tolist() == ["R0", "R1", "R2"] * 2
@@ -125,7 +141,7 @@ def test_cells_with_several_rows_ship_and_read_back_from_the_shipped_csv(tmp_pat
 
     for cached in (tmp_path / "cache" / "multi").glob("*.json"):
         cached.unlink()  # a fresh clone: only the shipped CSV
-    monkeypatch.setitem(sweep.STUDIES, "multi", sweep.Study(_per_reference_cells, _must_not_run))
+    monkeypatch.setitem(sweep.STUDIES, "multi", Study(_per_reference_cells, _must_not_run))
     fresh = sweep.run_sweep("multi", "paper", client=None, device="cpu", progress=False)
     assert (fresh.cached, fresh.computed) == (2, 0)
     pd.testing.assert_frame_equal(fresh.rows, first.rows)
@@ -135,8 +151,10 @@ def test_cells_with_several_rows_ship_and_read_back_from_the_shipped_csv(tmp_pat
 
 
 def _gappy_run(cell, profile_name, device, workdir, key):  # the first row lacks a middle column, as Table I's shapes do
-    return [dict(reference="R0", mae=float("nan"), score=0.1 + cell["seed"]),
-            dict(reference="R1", mae=1 / 3, score=2 / 3 + cell["seed"])]
+    return [
+        dict(reference="R0", mae=float("nan"), score=0.1 + cell["seed"]),
+        dict(reference="R1", mae=1 / 3, score=2 / 3 + cell["seed"]),
+    ]
 
 
 def test_reading_the_shipped_rows_leaves_the_shipped_csv_as_it_was(tmp_path, monkeypatch):
@@ -144,7 +162,7 @@ def test_reading_the_shipped_rows_leaves_the_shipped_csv_as_it_was(tmp_path, mon
     not even in its column order or the last digit of a float."""
     monkeypatch.setattr(sweep, "SWEEPS_DIR", tmp_path / "cache")
     monkeypatch.setattr(sweep, "SHIPPED_RESULTS", tmp_path / "shipped")
-    monkeypatch.setitem(sweep.STUDIES, "gappy", sweep.Study(_per_reference_cells, _gappy_run))
+    monkeypatch.setitem(sweep.STUDIES, "gappy", Study(_per_reference_cells, _gappy_run))
     sweep.run_sweep("gappy", "paper", client=None, device="cpu", progress=False)
     shipped = tmp_path / "shipped" / "gappy-paper.csv"
     committed = shipped.read_bytes()
@@ -152,7 +170,7 @@ def test_reading_the_shipped_rows_leaves_the_shipped_csv_as_it_was(tmp_path, mon
 
     for cached in (tmp_path / "cache" / "gappy").glob("*.json"):
         cached.unlink()  # a fresh clone: only the shipped CSV
-    monkeypatch.setitem(sweep.STUDIES, "gappy", sweep.Study(_per_reference_cells, _must_not_run))
+    monkeypatch.setitem(sweep.STUDIES, "gappy", Study(_per_reference_cells, _must_not_run))
     fresh = sweep.run_sweep("gappy", "paper", client=None, device="cpu", progress=False)
     assert fresh.computed == 0 and shipped.read_bytes() == committed
     assert (tmp_path / "cache" / "gappy-paper.csv").read_bytes() == committed
@@ -166,8 +184,11 @@ def test_bad_input_is_refused():
     with pytest.raises(ValueError, match="device"):
         sweep.resolve_device("tpu")
     assert sweep.resolve_device("cpu") == "cpu" and sweep.resolve_device("auto") in ("cuda", "mps", "cpu")
-    for bad in [dict(workers=0), dict(workers=2, scheduler="tcp://127.0.0.1:8786"),
-                dict(scheduler_file="s.json", scheduler="tcp://127.0.0.1:8786")]:
+    for bad in [
+        dict(workers=0),
+        dict(workers=2, scheduler="tcp://127.0.0.1:8786"),
+        dict(scheduler_file="s.json", scheduler="tcp://127.0.0.1:8786"),
+    ]:
         with pytest.raises(ValueError), sweep.connect(**bad):
             pass
     with pytest.raises(SystemExit):

@@ -1,19 +1,21 @@
 """The training loop's schedule, EMA and model selection, against hand-worked values."""
+
 import math
 
 import numpy as np
 import pytest
 import torch
-
 from conftest import SMALL
-from softflow import data, train
+
+from softflow import data, training
 from softflow.profiles import TrainConfig
+from softflow.training import trainer
 
 CONFIG = TrainConfig(epochs=2, steps_per_epoch=10, lr=1e-3, warmup_steps=4)  # 20 planned steps
 
 
 def test_learning_rate_warms_up_linearly_then_decays_by_cosine_to_a_tenth():
-    lr = [train.get_lr(step, CONFIG) for step in range(25)]
+    lr = [training.get_lr(step, CONFIG) for step in range(25)]
     np.testing.assert_allclose(lr[:4], [2.5e-4, 5e-4, 7.5e-4, 1e-3], rtol=1e-12)  # (step + 1) / warmup
     middle = 4 + (20 - 4) // 2  # half-way through the decay: 0.1 + 0.9 * 0.5 * (1 + cos(pi / 2)) = 0.55
     assert lr[middle] == pytest.approx(0.55e-3, rel=1e-12)
@@ -26,13 +28,13 @@ def test_ema_follows_the_hand_worked_warm_up_of_its_decay():
     with torch.no_grad():
         ema.weight.fill_(0.0)
         model.weight.fill_(1.0)
-    train._update_ema(ema, model, step=0, decay=0.999)  # d = min(0.999, 1 / 10) = 0.1: 0.1 * 0 + 0.9 * 1
+    trainer._update_ema(ema, model, step=0, decay=0.999)  # d = min(0.999, 1 / 10) = 0.1: 0.1 * 0 + 0.9 * 1
     assert ema.weight.item() == pytest.approx(0.9, rel=1e-6)
     with torch.no_grad():
         model.weight.fill_(3.0)
-    train._update_ema(ema, model, step=1, decay=0.999)  # d = 2 / 11
+    trainer._update_ema(ema, model, step=1, decay=0.999)  # d = 2 / 11
     assert ema.weight.item() == pytest.approx(2 / 11 * 0.9 + 9 / 11 * 3.0, rel=1e-6)
-    train._update_ema(ema, model, step=10**6, decay=0.5)  # late: d = decay
+    trainer._update_ema(ema, model, step=10**6, decay=0.5)  # late: d = decay
     assert ema.weight.item() == pytest.approx(0.5 * (2 / 11 * 0.9 + 9 / 11 * 3.0) + 0.5 * 3.0, rel=1e-6)
 
 
@@ -49,15 +51,16 @@ def scripted(monkeypatch, losses):
         shown.append({k: v.clone() for k, v in model.state_dict().items()})
         return losses[len(shown) - 1]
 
-    monkeypatch.setattr(train, "_evaluate", fake_evaluate)
+    monkeypatch.setattr(trainer, "_evaluate", fake_evaluate)
     return shown
 
 
 def test_the_checkpoint_holds_the_weights_of_the_best_validation_epoch(tiny_dataset, tmp_path, monkeypatch):
     shown = scripted(monkeypatch, [3.0, 1.0, 2.0, 2.5])
     config = TrainConfig(epochs=4, steps_per_epoch=5, batch_size=64, warmup_steps=2, val_samples=200, patience=10)
-    model, checkpoint = train.train("mlp", tiny_dataset, config, tmp_path / "mlp.pt", model_kwargs={"hidden": 16},
-                                    progress=False)
+    model, checkpoint = training.train(
+        "mlp", tiny_dataset, config, tmp_path / "mlp.pt", model_kwargs={"hidden": 16}, progress=False
+    )
     assert checkpoint["epochs_run"] == 4 and checkpoint["best_val"] == 1.0
     assert [h["val_loss"] for h in checkpoint["history"]] == [3.0, 1.0, 2.0, 2.5]
     for key, value in model.state_dict().items():
@@ -68,7 +71,8 @@ def test_the_checkpoint_holds_the_weights_of_the_best_validation_epoch(tiny_data
 def test_training_stops_after_patience_epochs_without_improvement(tiny_dataset, tmp_path, monkeypatch):
     scripted(monkeypatch, [1.0, 2.0, 3.0, 4.0, 5.0])
     config = TrainConfig(epochs=5, steps_per_epoch=5, batch_size=64, warmup_steps=2, val_samples=200, patience=2)
-    _, checkpoint = train.train("mlp", tiny_dataset, config, tmp_path / "mlp.pt", model_kwargs={"hidden": 16},
-                                progress=False)
+    _, checkpoint = training.train(
+        "mlp", tiny_dataset, config, tmp_path / "mlp.pt", model_kwargs={"hidden": 16}, progress=False
+    )
     assert checkpoint["epochs_run"] == 3 and checkpoint["best_val"] == 1.0
     assert math.isclose(checkpoint["history"][-1]["val_loss"], 3.0)

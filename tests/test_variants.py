@@ -1,12 +1,13 @@
 """Dataset variants: what a model is shown of the tip (hidden channels, finite differences,
 noise), how the rod is driven, and that the folded variant's premise holds in the statics."""
+
 import numpy as np
 import pytest
 
-from softflow import control, variants
-from softflow.data import DT
-from softflow.robots import SIM_ROBOT
-from softflow.sim import Simulator
+from softflow import control
+from softflow.data import variants
+from softflow.rod.dynamics import Simulator
+from softflow.rod.robots import DT, SIM_ROBOT
 
 
 @pytest.fixture(scope="module")
@@ -64,7 +65,7 @@ def test_the_folded_workspace_reaches_one_lateral_tip_position_with_two_bends():
     u1 = np.linspace(0.0, 12.0, 121)
     reach = sim.static_tip(np.stack([u1, np.zeros_like(u1)], -1))[:, 1]
     at_4 = reach[40]
-    beyond = u1[np.argmax(reach):][np.argmin(np.abs(reach[np.argmax(reach):] - at_4))]
+    beyond = u1[np.argmax(reach) :][np.argmin(np.abs(reach[np.argmax(reach) :] - at_4))]
     assert 6.0 < u1[np.argmax(reach)] < 8.0 and 8.5 < beyond < 9.5
     assert reach[u1 == beyond][0] == pytest.approx(at_4, abs=2e-3)
 

@@ -1,4 +1,5 @@
 """Synthetic RGB-D camera, red-marker tracking, stroboscope and recordings."""
+
 import types
 
 import cv2
@@ -6,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from softflow.vision import Camera, camera_facing, observe, read_rgbd, render, stroboscope, track, write_rgbd
+from softflow.hardware.vision import Camera, camera_facing, observe, read_rgbd, render, stroboscope, track, write_rgbd
 
 TIP = np.array([0.45, 0.0, 0.0])  # m, undeformed tip of the hardware rod
 
@@ -44,7 +45,9 @@ def test_tracks_a_moving_marker_within_a_millimetre():
     """Simulation at 100 Hz, filmed at 30 fps with default noise, the rod in view."""
     times = np.arange(0, 2.5 + 1e-9, 0.01)
     camera = camera_facing(TIP)
-    frame_times, tracked = observe(times, circle(times), camera, np.random.default_rng(0), centerlines=rod(circle(times)))
+    frame_times, tracked = observe(
+        times, circle(times), camera, np.random.default_rng(0), centerlines=rod(circle(times)), rod_diameter=0.004
+    )
     np.testing.assert_allclose(frame_times, np.arange(76) / 30, atol=1e-12)
     error = tracked - circle(frame_times)  # linear resampling of the 100 Hz circle is exact to 0.01 mm
     assert np.sqrt(np.mean(np.sum(error**2, 1))) < 1e-3  # m, 3-D RMSE
@@ -53,7 +56,12 @@ def test_tracks_a_moving_marker_within_a_millimetre():
 
 def test_frames_without_a_whole_marker_give_nan_rows():
     camera = camera_facing(TIP)
-    positions = TIP + [[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.205, 0.0], [0.6, 0.0, 0.0]]  # seen, out of view, cut by the border, behind the camera
+    positions = TIP + [
+        [0.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.205, 0.0],
+        [0.6, 0.0, 0.0],
+    ]  # seen, out of view, cut by the border, behind the camera
     frames = render(positions, camera, 0)
     assert isinstance(frames, types.GeneratorType)
     tracked = track(frames, camera)
@@ -64,7 +72,9 @@ def test_frames_without_a_whole_marker_give_nan_rows():
 def test_stroboscope_shows_several_poses():
     camera = camera_facing(TIP)
     times = np.arange(60) / camera.fps
-    colors = (color for color, _ in render(circle(times), camera, 0, centerlines=rod(circle(times))))
+    colors = (
+        color for color, _ in render(circle(times), camera, 0, centerlines=rod(circle(times)), rod_diameter=0.004)
+    )
     picture = stroboscope(colors, every=12)
     assert picture.shape == (camera.height, camera.width, 3) and picture.dtype == np.uint8
     hsv = cv2.cvtColor(picture, cv2.COLOR_BGR2HSV)

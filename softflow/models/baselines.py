@@ -2,6 +2,7 @@
 over the last K transitions. All regress u_t with a mean-squared error in normalised units.
 MLP-Physical (not in the paper) regresses the residual around RF-Physical's static prior:
 the prior without the generative model, to tell their benefits apart."""
+
 from __future__ import annotations
 
 import numpy as np

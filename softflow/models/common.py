@@ -1,5 +1,6 @@
 """What every inverse model shares: normalisation inside the module, transition features,
 and the interface the training loop and the controller rely on."""
+
 from __future__ import annotations
 
 from contextlib import contextmanager
@@ -135,8 +136,11 @@ class LeanModel:
 
     def __init__(self, model: InverseModel, net: nn.Sequential):
         self.buffers = {name: b.detach().numpy() for name, b in model.named_buffers()}
-        self.weights = [(np.ascontiguousarray(m.weight.detach().numpy().T), m.bias.detach().numpy())
-                        for m in net if isinstance(m, nn.Linear)]
+        self.weights = [
+            (np.ascontiguousarray(m.weight.detach().numpy().T), m.bias.detach().numpy())
+            for m in net
+            if isinstance(m, nn.Linear)
+        ]
 
     def _normalize(self, name, x):
         return (x - self.buffers[f"{name}.mean"]) / self.buffers[f"{name}.std"]

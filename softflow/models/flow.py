@@ -7,6 +7,7 @@ actuation along the straight path xi_tau = (1 - tau) z + tau xi, trained with
   RF-Physical: xi = u - u_phys,    c = (x_t, x_{t+1}, u_phys), u_phys = inverse statics of p_{t+1}
   RF-FWD:      RF + lambda ||f_phi(x_t, u_hat) - x_{t+1}||^2 with a frozen forward surrogate f_phi.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -21,8 +22,15 @@ class RectifiedFlow(InverseModel):
     prior u_phys of the training rod (RF-Physical). ``consistency``: lambda_cons of RF-FWD
     (0 for RF); its frozen forward surrogate is trained first and given to ``attach``."""
 
-    def __init__(self, hidden: int = 256, layers: int = 3, steps: int = 4, tau_sampling: str = "logit-normal",
-                 prior: bool = False, consistency: float = 0.0):
+    def __init__(
+        self,
+        hidden: int = 256,
+        layers: int = 3,
+        steps: int = 4,
+        tau_sampling: str = "logit-normal",
+        prior: bool = False,
+        consistency: float = 0.0,
+    ):
         super().__init__()
         if tau_sampling not in ("uniform", "logit-normal"):
             raise ValueError(f"tau_sampling must be 'uniform' or 'logit-normal'; got {tau_sampling!r}")

@@ -1,4 +1,5 @@
 """Forward-dynamics surrogate f_phi(x_t, u_t) -> x_{t+1} of RF-FWD (paper: 2 layers, 128 ReLU)."""
+
 from __future__ import annotations
 
 import torch

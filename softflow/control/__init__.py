@@ -1,0 +1,23 @@
+"""Control: open-loop planning (``Controller``), the metrics, the ILC floor, tip-state
+estimation and the closed loop. Imports models, data and the rod, never training.
+"""
+
+from softflow.lazy import facade
+
+EXPORTS = {
+    "planning": [
+        "NOISE",
+        "WORKSPACE_MARGIN",
+        "SaturationWarning",
+        "Controller",
+        "find_trained",
+        "load_controller",
+        "plan_all",
+        "pad_plans",
+        "evaluate",
+        "evaluate_many",
+        "score",
+    ],
+}
+SUBMODULES = ["metrics", "floor", "estimation", "closed_loop"]
+__getattr__, __dir__, __all__ = facade(__name__, EXPORTS, SUBMODULES)

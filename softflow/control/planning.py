@@ -1,0 +1,303 @@
+"""Open-loop control: plan u_t = g(x*_t, x*_{t+1}) for a whole reference in one batched call,
+run the plan in the simulator from rest, and score it."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pandas as pd
+import torch
+
+from softflow.checks import as_real_array, check_choice
+from softflow.control.metrics import actuation_mae, fitting_lag, input_energy, phase_lag, tracking_rmse
+from softflow.data.dataset import dataset_path, gather_windows
+from softflow.models.baselines import InverseMLP, LeanMLP
+from softflow.models.checkpoints import find_checkpoint, identity, load_checkpoint, model_from_checkpoint
+from softflow.models.common import one_thread
+from softflow.models.flow import LeanFlow, RectifiedFlow
+from softflow.profiles import get_profile
+from softflow.rod.dynamics import Simulator
+from softflow.rod.robots import DT, SIM_ROBOT, U_MAX, Robot, rod_folder
+
+NOISE = ("zero", "seeded", "fresh")
+# A reference tip position farther than this many training standard deviations from the
+# training mean, on any axis, is refused: millimetres for metres, or another rod's
+# references. The paper's references (shapes, random, burst, complex 3D) reach at most 5.4,
+# the simulation rod's references on a hardware-twin model 11 to 61 (docs/assumptions.md).
+WORKSPACE_MARGIN = 8.0
+
+
+class SaturationWarning(UserWarning):
+    """A plan asked for more than the actuator range and was clipped."""
+
+
+class Controller:
+    """A trained inverse model used open loop: ``plan`` maps references to actuation.
+
+    A generative model starts every step from noise z: by default z = 0, the centre of the
+    noise, which plans like the mean of many draws (notebook 05) and is deterministic;
+    ``noise="seeded"`` draws one z per trajectory from ``seed`` and uses it at every step,
+    ``noise="fresh"`` draws a new z for every step; ``sample`` gives independent draws.
+    ``robot`` and ``gravity``: the rod the model was trained for (RF-Physical's prior is
+    its statics, tabulated once per controller). ``u_limit``: the actuator range (N) plans
+    are clipped to. ``observe``: what the model was shown of a tip path, applied to every
+    reference ``plan`` and ``sample`` get (e.g. ``variants.Variant.observe``: velocities
+    hidden, or by finite differences, which need the path); None: the full state. ``step``
+    takes its two states as the model sees them. ``workspace_margin``: references farther
+    than this many training standard deviations are refused (``check_workspace``); None
+    plans anything, for studies that measure extrapolation on purpose."""
+
+    def __init__(
+        self,
+        model: torch.nn.Module,
+        name: str,
+        seed: int = 0,
+        *,
+        robot: Robot = SIM_ROBOT,
+        gravity: str = "vertical",
+        u_limit: float = U_MAX,
+        observe=None,
+        workspace_margin: float | None = WORKSPACE_MARGIN,
+    ):
+        if not u_limit > 0:
+            raise ValueError(f"u_limit must be a positive actuator range in N; got {u_limit!r}")
+        if workspace_margin is not None and not workspace_margin > 0:
+            raise ValueError(f"workspace_margin must be positive or None; got {workspace_margin!r}")
+        self.model, self.name, self.seed, self.robot, self.gravity = model.eval(), name, seed, robot, gravity
+        self.u_limit, self.observe, self.workspace_margin = float(u_limit), observe, workspace_margin
+        self.generative = isinstance(model, RectifiedFlow)
+        self.statics = Simulator(robot, gravity).static_table() if model.needs_statics else None
+        self.lean = LeanFlow(model) if self.generative else LeanMLP(model) if isinstance(model, InverseMLP) else None
+
+    def step(self, x_t, x_next, *, clip: bool = True) -> np.ndarray:
+        """u_t for one transition, (6,), (6,) -> (2,), or a batch, (B, 6), (B, 6) -> (B, 2): the
+        real-time path (plain numpy, no autograd), the same u as ``plan`` to about 1e-5 N.
+        A flow starts from z = 0, as ``plan`` does. u beyond the actuator range is clipped,
+        with a ``SaturationWarning`` (``clip=False``: returned as the model gives it, for a
+        loop that adds its own correction first). Models that read a window of past states
+        (LSTM, Transformer) have no step: ``plan`` them."""
+        if self.lean is None:
+            raise ValueError(
+                f"{self.name} reads a window of {self.model.context} past transitions: it has no "
+                f"one-transition step; use plan"
+            )
+        x, unbatched = as_real_array(x_t, "x_t", (None, 6), allow_unbatched=True)
+        x_next, _ = as_real_array(x_next, "x_next", x.shape[1:] if unbatched else x.shape)
+        window = np.stack([x, x_next[None] if unbatched else x_next], 1)
+        prior = self.statics.inverse(window[:, 1, :3]) if self.statics is not None else None
+        u = (
+            self.lean.predict(window, np.zeros((len(window), 2)), prior)
+            if self.generative
+            else self.lean.predict(window, prior)
+        )
+        u = u.astype(np.float64)
+        if clip:
+            if np.abs(u).max() > self.u_limit:
+                warnings.warn(
+                    f"{self.name}: {int(np.sum(np.abs(u) > self.u_limit))} of {u.size} stepped u values "
+                    f"exceed the actuator range +-{self.u_limit:g} N and were clipped",
+                    SaturationWarning,
+                    stacklevel=2,
+                )
+            u = np.clip(u, -self.u_limit, self.u_limit)
+        return u[0] if unbatched else u
+
+    def plan(
+        self, reference, *, noise: str = "zero", seed: int | None = None, n_samples: int = 1, **options
+    ) -> np.ndarray:
+        """(T+1, 6) or (B, T+1, 6) reference -> (T, 2) or (B, T, 2) actuation (N), every
+        step predicted in one batched call (the plan depends on the reference only).
+        ``n_samples`` > 1 plans with the mean of that many noise draws: a Monte-Carlo
+        estimate of E[u | x_t, x_t+1], the plan of least squared actuation error.
+
+        Options: ``steps`` (Euler steps of a flow, >= 1). u beyond the actuator range
+        ``u_limit`` is clipped, with a ``SaturationWarning`` that counts the samples."""
+        check_choice(noise, "noise", NOISE)
+        if not (isinstance(n_samples, int) and n_samples >= 1):
+            raise ValueError(f"n_samples must be a positive integer; got {n_samples!r}")
+        if n_samples == 1:
+            u = self._plan(reference, noise, seed, options)
+        elif noise == "zero":
+            raise ValueError("n_samples > 1 averages random draws: use noise='seeded' or 'fresh'")
+        else:
+            u = self.sample(reference, n_samples, noise=noise, seed=seed, **options).mean(0)
+        clipped = int(np.sum(np.abs(u) > self.u_limit))
+        if clipped:
+            warnings.warn(
+                f"{self.name}: {clipped} of {u.size} planned u values exceed the actuator range "
+                f"+-{self.u_limit:g} N and were clipped",
+                SaturationWarning,
+                stacklevel=2,
+            )
+        return np.clip(u, -self.u_limit, self.u_limit)
+
+    def sample(self, reference, n: int, *, noise: str = "seeded", seed: int | None = None, **options) -> np.ndarray:
+        """``n`` plans from independent noise draws: (n, T, 2) or (n, B, T, 2), not clipped.
+        Their spread is the flow's own uncertainty about the actuation (a regression model
+        has none: ValueError)."""
+        if not (isinstance(n, int) and n >= 1):
+            raise ValueError(f"n must be a positive integer; got {n!r}")
+        check_choice(noise, "noise", NOISE[1:])
+        if not self.generative:
+            raise ValueError(f"{self.name} is a regression model: it has no noise to sample")
+        X, unbatched = as_real_array(reference, "reference", (None, None, 6), allow_unbatched=True)
+        u = self._plan(np.tile(X, (n, 1, 1)), noise, seed, options).reshape(n, len(X), -1, 2)
+        return u[:, 0] if unbatched else u
+
+    def _check_options(self, noise, options):
+        if not self.generative:
+            if noise != "zero" or options:
+                raise ValueError(
+                    f"{self.name} is a regression model: it takes no noise or step options; "
+                    f"got noise={noise!r}, options {sorted(options)}"
+                )
+            return
+        unknown = set(options) - {"steps"}
+        if unknown:
+            raise ValueError(f"unknown plan options {sorted(unknown)}; a flow takes steps=N")
+        steps = options.get("steps")
+        if steps is not None and not (isinstance(steps, (int, np.integer)) and steps >= 1):
+            raise ValueError(f"steps must be a positive integer; got {steps!r}")
+
+    def check_workspace(self, X):
+        """Refuse references far outside the training states (unit mistakes, another rod)."""
+        if self.workspace_margin is None:
+            return
+        mean, std = (b.numpy().astype(np.float64) for b in (self.model.state_norm.mean, self.model.state_norm.std))
+        score = np.abs(X[..., :3] - mean[:3]) / std[:3]
+        worst = np.unravel_index(np.argmax(score), score.shape)
+        if score[worst] > self.workspace_margin:
+            *where, axis = worst
+            raise ValueError(
+                f"reference tip position {'xyz'[axis]} = {X[(*where, axis)]:.4g} m at index "
+                f"{tuple(int(i) for i in where)} is {score[worst]:.0f} training standard deviations from "
+                f"the training mean {mean[axis]:.3f} m (at most {self.workspace_margin:g}): is it in "
+                f"metres, and for the rod this model was trained on?"
+            )
+
+    def _plan(self, reference, noise, seed, options) -> np.ndarray:
+        self._check_options(noise, options)
+        X, unbatched = as_real_array(reference, "reference", (None, None, 6), allow_unbatched=True)
+        B, T = X.shape[0], X.shape[1] - 1
+        if B == 0:
+            raise ValueError("reference must hold at least one trajectory (its batch axis is empty)")
+        if T < 1:
+            raise ValueError("reference must have at least 2 samples")
+        if self.observe is not None:
+            X = self.observe(X)
+        self.check_workspace(X)
+        episodes, steps = np.repeat(np.arange(B), T), np.tile(np.arange(T), B)
+        windows = torch.as_tensor(gather_windows(X, episodes, steps, self.model.context), dtype=torch.float32)
+        extras = {
+            k: torch.as_tensor(v.reshape(B * T, -1), dtype=torch.float32)
+            for k, v in self.model.extras(X, self.statics).items()
+        }
+        if self.generative:
+            generator = torch.Generator().manual_seed(self.seed if seed is None else seed)
+            z = torch.randn((B, T if noise == "fresh" else 1, 2), generator=generator)
+            options["noise"] = (torch.zeros_like(z) if noise == "zero" else z).expand(B, T, 2).reshape(B * T, 2)
+        with torch.inference_mode(), one_thread():
+            u = self.model.predict(windows, **extras, **options).numpy().astype(np.float64).reshape(B, T, 2)
+        return u[0] if unbatched else u
+
+
+def find_trained(
+    name: str,
+    profile: str = "paper",
+    robot: Robot = SIM_ROBOT,
+    gravity: str = "vertical",
+    model_kwargs: dict | None = None,
+):
+    """The checkpoint of model ``name`` for a profile and rod, and whether it is current (trained
+    with today's arguments, budget and data): ``models.checkpoints.find_checkpoint`` with the
+    identity the profile asks for. (None, False) when there is none."""
+    P = get_profile(profile)
+    wanted = identity(name, model_kwargs, P.train_config(name), dataset_path(P, robot, gravity).stem)
+    return find_checkpoint(name, profile, wanted, rod_folder(robot, gravity), model_kwargs)
+
+
+def load_controller(
+    name: str, profile: str = "paper", robot: Robot = SIM_ROBOT, gravity: str = "vertical"
+) -> Controller:
+    """The trained model ``name`` ("mlp", "lstm", "transformer", ...) of a profile, for the rod
+    and configuration it was trained on; paper-profile weights ship with the repository, so
+    this works right after a clone. A model you trained yourself (data/checkpoints/) is
+    preferred when it is current; a stale one is used with a warning."""
+    path, current = find_trained(name, profile, robot, gravity)
+    if path is None:
+        raise ValueError(
+            f"no trained {name!r} for profile {profile!r} and rod {robot.name!r} / {gravity!r}; "
+            f"train it with: python -m softflow train --profile {profile} {name}"
+        )
+    if not current:
+        warnings.warn(
+            f"{path} was trained with other arguments, budget, data or simulator version; "
+            f"retrain it with: python -m softflow train --profile {profile} {name}",
+            stacklevel=2,
+        )
+    return Controller(model_from_checkpoint(load_checkpoint(path), path), name, robot=robot, gravity=gravity)
+
+
+def plan_all(controller, references, u_limit: float = U_MAX, **plan_options):
+    """Plan every reference and clip to ``u_limit``: the plans, and the same stacked
+    (R, T_max, 2) with shorter plans padded by holding their last u, ready for one batched run.
+    Saturation is part of what an evaluation measures, so it is not warned about here."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SaturationWarning)
+        plans = [np.clip(controller.plan(r.states, **plan_options), -u_limit, u_limit) for r in references]
+    return pad_plans(plans)
+
+
+def pad_plans(plans):
+    longest = max(len(u) for u in plans)
+    return plans, np.stack([np.concatenate([u, np.repeat(u[-1:], longest - len(u), 0)]) for u in plans])
+
+
+def evaluate(controller, references, sim: Simulator, u_limit: float = U_MAX, *, start_q=None, **plan_options):
+    """Plan every reference (``plan_options`` go to ``plan``, e.g. steps=N), clip to the
+    actuator range, run all plans open loop from rest (the rest pose, or ``start_q``, one
+    (nq,) pose per reference) in one batched rollout, and score them. Returns a DataFrame
+    (one row per reference) and {name: dict(u, states)}."""
+    results, runs = evaluate_many([controller], references, sim, u_limit, start_q=start_q, **plan_options)
+    return results, runs[controller.name]
+
+
+def evaluate_many(controllers, references, sim: Simulator, u_limit: float = U_MAX, *, start_q=None, **plan_options):
+    """``evaluate`` for several controllers at once: every plan of every controller runs in
+    one batched rollout, several times faster than one rollout per controller (the simulator
+    is batch-invariant, so the numbers are the same). Returns one DataFrame (a row per
+    controller and reference) and {controller name: {reference name: dict(u, states)}}."""
+    names = [c.name for c in controllers]
+    if len(set(names)) != len(names):
+        raise ValueError(f"controllers must have distinct names; got {names}")
+    planned = [plan_all(c, references, u_limit, **plan_options)[0] for c in controllers]
+    _, padded = pad_plans([u for plans in planned for u in plans])
+    start = None if start_q is None else np.tile(np.asarray(start_q, float), (len(controllers), 1))
+    achieved = sim.rollout(padded, start_q=start).reshape(len(controllers), len(references), -1, 6)
+    rows, runs = [], {name: {} for name in names}
+    for name, plans, outcomes in zip(names, planned, achieved):
+        for r, u, X in zip(references, plans, outcomes):
+            X = X[: r.n_steps + 1]
+            rows.append(score(name, r, u, X))
+            runs[name][r.name] = dict(u=u, states=X)
+    return pd.DataFrame(rows), runs
+
+
+def score(name: str, reference, u, achieved) -> dict:
+    """One row of Tables I and II: a plan ``u`` (T, 2) of ``name`` that ran to ``achieved``
+    (T+1, 6), scored on the reference's masked samples."""
+    masked = reference.mask
+    row = dict(
+        model=name,
+        reference=reference.name,
+        family=reference.family,
+        rmse_mm=1e3 * tracking_rmse(achieved, reference.states, masked),
+        phase_lag_s=phase_lag(
+            achieved[masked, 1:3], reference.states[masked, 1:3], DT, max_lag=fitting_lag(int(masked.sum()), DT)
+        ),
+        input_energy=input_energy(u, DT),
+    )
+    if reference.u_true is not None:
+        row["mae_u1"], row["mae_u2"] = actuation_mae(u, reference.u_true)
+    return row

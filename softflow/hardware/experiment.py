@@ -1,0 +1,149 @@
+"""The hardware experiment on the twin: plan, command, replay and film every reference, open
+or closed loop.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from softflow.checks import check_choice
+from softflow.control.closed_loop import PI, learn_by_repetition
+from softflow.control.metrics import peak_speed, tracking_rmse
+from softflow.control.planning import plan_all
+from softflow.hardware.commands import write_commands
+from softflow.hardware.twin import (
+    CablePlant,
+    RealityGap,
+    TwinRig,
+    cable_commands,
+    observe_run,
+    tracked_rmse,
+    twin_camera,
+)
+from softflow.rod.dynamics import Simulator
+from softflow.rod.robots import U_MAX
+
+LOOPS = ("open", "closed")
+
+
+def run_twin(
+    controller,
+    references,
+    sim: Simulator,
+    gap: RealityGap,
+    *,
+    loop: str = "open",
+    correction=None,
+    condition: str = "reference",
+    repetitions: int = 1,
+    camera_latency: float = 0.0,
+    dropped: float = 0.0,
+    calibration=None,
+    command_dir=None,
+    u_limit: float = U_MAX,
+    seed: int = 0,
+):
+    """The hardware experiment on the twin, for every reference: ``loop="open"`` plans it with
+    ``controller`` (trained on the model ``sim``), turns the plan into motor commands through
+    ``sim``, replays them on the plant across ``gap`` (all references in one batch) and films
+    the run; ``loop="closed"`` runs ``loop.run_loop`` against a ``TwinRig`` (the camera in the
+    loop, ``camera_latency`` s late, a share ``dropped`` of frames lost; ``correction`` and
+    ``condition`` as in ``run_loop``, its default gains if None; ``repetitions`` > 1 learns a
+    feedforward across that many runs, ``loop.learn_by_repetition``, and scores the run the
+    camera saw track best, the feedforward a user would keep, as the ILC floor keeps its best).
+    ``calibration`` (``calibration.Calibration``, e.g. from an identification run): plans
+    are mapped to the identified rod and made into motor commands through it, in both loops.
+    Commands go to ``command_dir`` as CSV if given.
+    Returns a DataFrame (one row per reference: RMSE through the camera and of the true tip,
+    clipped commands and watchdog events) and {name: dict(u, commands, states, q, frame_times,
+    tracked)}."""
+    check_choice(loop, "loop", LOOPS)
+    runs = (
+        _open_runs(controller, references, sim, gap, u_limit, seed, calibration)
+        if loop == "open"
+        else {
+            r.name: _closed_run(
+                controller,
+                r,
+                sim,
+                gap,
+                dict(correction=correction or PI(), condition=condition, u_limit=u_limit, calibration=calibration),
+                repetitions,
+                camera_latency,
+                dropped,
+                seed + k,
+            )
+            for k, r in enumerate(references)
+        }
+    )
+    rows = []
+    for r in references:
+        run = runs[r.name]
+        if command_dir is not None:
+            write_commands(Path(command_dir) / f"{r.name}.csv", run["commands"])
+        rows.append(
+            dict(
+                reference=r.name,
+                family=r.family,
+                gravity=sim.gravity,
+                loop=loop,
+                rmse_mm=1e3 * tracked_rmse(run["frame_times"], run["tracked"], r),
+                rmse_true_mm=1e3 * tracking_rmse(run["states"], r.states, r.mask),
+                peak_speed=peak_speed(run["states"], r.mask),
+                lost_frames=int(np.isnan(run["tracked"]).any(1).sum()),
+                clipped=run["clipped"],
+                watchdog_events=run["watchdog_events"],
+                repetition=run.get("repetition", 1),
+            )
+        )
+    return pd.DataFrame(rows), runs
+
+
+def _open_runs(controller, references, sim, gap, u_limit, seed, calibration) -> dict:
+    plans, padded = plan_all(controller, references, u_limit)
+    if calibration is None:
+        commands = cable_commands(padded, sim)
+    else:
+        padded = np.clip(calibration.actuation(padded), -u_limit, u_limit)
+        plans, commands = [padded[k, : len(u)] for k, u in enumerate(plans)], calibration.commands(padded)
+    plant = CablePlant(sim.robot, sim.gravity, gap)
+    replayed = plant.replay(commands)
+    camera = twin_camera(sim, gap)
+    runs = {}
+    for k, (r, u) in enumerate(zip(references, plans)):
+        n = len(u)
+        run = dict(
+            u=u,
+            commands=commands[k, :n],
+            states=replayed["states"][k, : n + 1],
+            q=replayed["q"][k, : n + 1],
+            clipped=0,
+            watchdog_events=0,
+        )
+        run["frame_times"], run["tracked"] = observe_run(plant.sim, run["q"], camera, seed=seed + k)
+        runs[r.name] = run
+    return runs
+
+
+def _closed_run(controller, reference, sim, gap, loop_options, repetitions, latency, dropped, seed) -> dict:
+    def make_rig():
+        return TwinRig(sim, gap, latency=latency, dropped=dropped, seed=seed, calibration=loop_options["calibration"])
+
+    runs = learn_by_repetition(controller, reference, make_rig, repetitions=repetitions, **loop_options)
+    kept = int(np.argmin([tracked_rmse(rig.frame_times, rig.tracked, reference) for _, rig in runs]))
+    result, rig = runs[kept]
+    return dict(
+        u=result.u,
+        commands=np.array(rig.commands),
+        states=np.array(rig.states),
+        q=np.array(rig.q),
+        frame_times=np.array(rig.frame_times),
+        tracked=np.array(rig.tracked),
+        clipped=result.clipped,
+        watchdog_events=result.watchdog_events,
+        estimates=result.estimates,
+        repetition=kept + 1,
+    )

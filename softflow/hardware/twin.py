@@ -1,0 +1,334 @@
+"""Hardware replay (Sec. V): planned actuation becomes per-cable motor commands, replayed on a
+twin plant across a stated reality gap and watched by a camera.
+
+The model is driven by differential tensions u, the robot by motors that hold cable
+positions, so commands are made *through the model*: the tension-driven twin's rod shape
+gives each cable's path-length change Delta_c(q) (``cables.cable_displacements``), and a
+cable of stiffness k carries k (l_c + Delta_c(q)) when its motor has pulled in l_c. To
+produce the planned tensions T_c(u) (u split over the three cables above a pretension,
+``cables.cable_tensions``) the motor pulls in l_c = T_c / k - Delta_c(q), with Delta_c
+averaged over the control step.
+
+The plant is the same rod with every term of ``RealityGap``: its E, eta, rho are off,
+motors follow their commands with a first-order lag, each cable has its own slack
+(tension k max(0, stretch - slack)), and the camera adds its noise. Cable tension is
+re-evaluated every quarter step, as the physical cable would.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, replace
+
+import numpy as np
+from scipy.optimize import brentq
+
+from softflow.checks import as_real_array
+from softflow.hardware import vision
+from softflow.rod.cables import cable_actuation, cable_displacements, cable_tensions
+from softflow.rod.dynamics import Simulator
+from softflow.rod.robots import DT, Robot
+
+CABLE_STIFFNESS = 1000.0  # N/m, line + guides + motor mount in series (assumed; docs/assumptions.md)
+PRETENSION = 1.0  # N, the slackest cable's tension: keeps every cable taut
+CAMERA_DISTANCE = 0.4  # m, camera beyond the rest tip, looking back along the rod
+
+
+@dataclass(frozen=True)
+class RealityGap:
+    """Everything that separates the plant from the model used to plan, in one seeded place."""
+
+    youngs_modulus: float = 0.0  # relative error of the plant's E
+    damping: float = 0.0  # relative error of its eta
+    density: float = 0.0  # relative error of its rho
+    motor_lag: float = 0.0  # s, time constant of each motor's position loop
+    slack: float = 0.0  # m, each cable's slack is drawn uniformly from [0, slack]
+    depth_noise: float = 0.0  # m at 1 m, the camera's depth noise (grows with Z^2)
+    pixel_noise: float = 0.0  # colour noise of the camera, 0-255
+    seed: int = 0
+
+    def __post_init__(self):
+        for name, value in asdict(self).items():
+            if not np.isfinite(value):
+                raise ValueError(f"{name} must be finite; got {value!r}")
+        for name in ("motor_lag", "slack", "depth_noise", "pixel_noise"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"{name} must be >= 0; got {getattr(self, name)!r}")
+        if min(self.youngs_modulus, self.damping, self.density) <= -1:
+            raise ValueError("relative parameter errors must be > -1 (a positive parameter stays positive)")
+
+    def plant_robot(self, robot: Robot) -> Robot:
+        return replace(
+            robot,
+            youngs_modulus=robot.youngs_modulus * (1 + self.youngs_modulus),
+            damping=robot.damping * (1 + self.damping),
+            density=robot.density * (1 + self.density),
+        )
+
+    def doubled(self, term: str) -> RealityGap:
+        """This gap with one term twice as large: the sensitivity study."""
+        if term not in GAP_TERMS:
+            raise ValueError(f"term must be one of {GAP_TERMS}; got {term!r}")
+        return replace(self, **{term: 2 * getattr(self, term)})
+
+
+GAP_TERMS = ("youngs_modulus", "damping", "density", "motor_lag", "slack", "depth_noise", "pixel_noise")
+NO_GAP = RealityGap()
+# A bench-top rod: E, eta, rho within 10-20 % of their nominal values, a hobby servo's lag,
+# a few tenths of a millimetre of slack, D435-like depth and colour noise.
+TYPICAL_GAP = RealityGap(
+    youngs_modulus=-0.15, damping=0.20, density=0.10, motor_lag=0.02, slack=3e-4, depth_noise=1e-3, pixel_noise=3.0
+)
+
+
+def calibrate_sag(robot: Robot, rest_tip, gravity: str = "horizontal") -> Robot:
+    """The rod with its Young's modulus rescaled so that its unactuated equilibrium tip sags
+    as far as a measured one (``rest_tip`` (3,), m, robot frame): the first thing to do with a
+    real rod, since the sag (rho A g L^3 / 8 EI in small deflection) decides where every
+    shape is reached. Statics identify only rho / E, so E carries the whole correction."""
+    rest_tip, _ = as_real_array(rest_tip, "rest_tip", (3,))
+    straight = np.array([robot.length, 0.0, 0.0])
+    measured = np.linalg.norm(rest_tip - straight)
+
+    def scaled(log_scale):
+        return replace(robot, youngs_modulus=robot.youngs_modulus * np.exp(log_scale))
+
+    def sag(log_scale):
+        return np.linalg.norm(Simulator(scaled(log_scale), gravity=gravity).static_tip(np.zeros((1, 2)))[0] - straight)
+
+    low, high = np.log(0.1), np.log(10.0)
+    softest, stiffest = sag(low), sag(high)
+    if not stiffest <= measured <= softest:
+        raise ValueError(
+            f"a rest sag of {1e3 * measured:.1f} mm is outside what E x 0.1 .. 10 gives "
+            f"({1e3 * stiffest:.1f} .. {1e3 * softest:.1f} mm); check rest_tip is in metres, robot frame"
+        )
+    return scaled(brentq(lambda x: sag(x) - measured, low, high, xtol=1e-10))
+
+
+def cable_commands(
+    u, sim: Simulator, stiffness: float = CABLE_STIFFNESS, pretension: float = PRETENSION, lead: float = 0.0
+):
+    """Planned actuation (B, T, 2) -> motor commands (B, T, C) in m, through the tension-driven
+    model ``sim`` (the rod shape it predicts for the plan). ``lead`` (s): each command leads
+    by that much of its rate of change, undoing a motor lag of that time constant."""
+    u, _ = as_real_array(u, "u", (None, None, 2))
+    _check_cables(stiffness, lead)
+    B, T, _ = u.shape
+    q, _ = sim.integrate(u, sim.rest_q(), np.zeros(sim.nq))
+    delta = cable_displacements(sim.bend_angles(q.reshape(-1, sim.nq)), sim.robot).reshape(B, T + 1, -1)
+    tensions = cable_tensions(u.reshape(-1, 2), sim.robot, pretension).reshape(B, T, -1)
+    commands = tensions / stiffness - 0.5 * (delta[:, :-1] + delta[:, 1:])
+    rest = np.broadcast_to(rest_command(sim, stiffness, pretension), (B, 1, commands.shape[2]))
+    return commands + lead / DT * np.diff(commands, axis=1, prepend=rest)
+
+
+def rest_command(sim: Simulator, stiffness: float = CABLE_STIFFNESS, pretension: float = PRETENSION) -> np.ndarray:
+    """The motor commands (C,) in m that hold ``sim``'s rod at rest with every cable at its pretension."""
+    return pretension / stiffness - cable_displacements(sim.bend_angles(sim.rest_q()[None]), sim.robot)[0]
+
+
+def _check_cables(stiffness: float, lead: float):
+    if not stiffness > 0:
+        raise ValueError(f"stiffness must be positive; got {stiffness!r}")
+    if not (np.isfinite(lead) and lead >= 0):
+        raise ValueError(f"lead must be a finite time >= 0 s; got {lead!r}")
+
+
+class StepCommands:
+    """Motor commands one control step at a time, for a loop: ``commands(u)`` (2,) -> (C,) in
+    m, through the model rod ``sim`` integrated alongside, exactly as ``cable_commands`` turns
+    a whole plan (the cable path change averaged over the step, the same ``lead``)."""
+
+    def __init__(
+        self, sim: Simulator, stiffness: float = CABLE_STIFFNESS, pretension: float = PRETENSION, lead: float = 0.0
+    ):
+        _check_cables(stiffness, lead)
+        self.sim, self.stiffness, self.pretension, self.lead = sim, stiffness, pretension, lead
+        self.q, self.qd = sim.rest_q()[None], np.zeros((1, sim.nq))
+        self.last = rest_command(sim, stiffness, pretension)
+
+    def __call__(self, u) -> np.ndarray:
+        u, _ = as_real_array(np.reshape(u, (1, 1, 2)), "u", (1, 1, 2))
+        q, qd = self.sim.integrate(u, self.q, self.qd)
+        delta = cable_displacements(self.sim.bend_angles(q[0]), self.sim.robot)  # (2, C): the step's ends
+        self.q, self.qd = q[:, -1], qd[:, -1]
+        command = cable_tensions(u[0], self.sim.robot, self.pretension)[0] / self.stiffness - 0.5 * (
+            delta[0] + delta[1]
+        )
+        led, self.last = command + self.lead / DT * (command - self.last), command
+        return led
+
+
+class CablePlant:
+    """The twin robot: motor positions in, rod motion out, across a ``RealityGap``."""
+
+    def __init__(
+        self,
+        robot: Robot,
+        gravity: str,
+        gap: RealityGap = NO_GAP,
+        *,
+        stiffness: float = CABLE_STIFFNESS,
+        pretension: float = PRETENSION,
+        substeps: int = 4,
+    ):
+        self.robot, self.gap, self.stiffness, self.pretension, self.substeps = (
+            robot,
+            gap,
+            stiffness,
+            pretension,
+            substeps,
+        )
+        self.sim = Simulator(gap.plant_robot(robot), gravity, dt=DT / substeps, substeps=1, threads=1)
+        self.slack = np.random.default_rng(gap.seed).uniform(0.0, gap.slack, robot.n_cables)
+
+    def _cable_stretch(self, motor, q):
+        return motor + cable_displacements(self.sim.bend_angles(q), self.robot) - self.slack
+
+    def reset(self, batch: int = 1) -> None:
+        """``batch`` rods at rest, every motor holding the command of the rest pose (its
+        pretension, less any slack): the state ``step`` advances."""
+        sim = self.sim
+        self.q, self.qd = np.repeat(sim.rest_q()[None], batch, 0), np.zeros((batch, sim.nq))
+        self.motor = np.repeat(rest_command(sim, self.stiffness, self.pretension)[None], batch, 0)
+
+    def step(self, command) -> np.ndarray:
+        """Hold motor commands (B, C) in m for DT: the rods move; returns the mean cable
+        tensions (B, C) over the step. After ``reset``."""
+        sim, h = self.sim, DT / self.substeps
+        follow = 1.0 - np.exp(-h / self.gap.motor_lag) if self.gap.motor_lag > 0 else 1.0
+        tensions = np.zeros_like(self.motor)
+        for _ in range(self.substeps):
+            self.motor = self.motor + follow * (command - self.motor)
+            tension = self.stiffness * np.maximum(self._cable_stretch(self.motor, self.q + 0.5 * h * self.qd), 0.0)
+            self.q, self.qd = (
+                x[:, -1] for x in sim.integrate(cable_actuation(tension, self.robot)[:, None], self.q, self.qd)
+            )
+            tensions += tension / self.substeps
+        return tensions
+
+    def tip_state(self) -> np.ndarray:
+        """The rods' tip states (B, 6) now."""
+        return self.sim.tip_state(self.q, self.qd)
+
+    def replay(self, commands) -> dict:
+        """Motor commands (B, T, C) in m, held for DT each -> dict of tip ``states`` (B, T+1, 6),
+        rod ``q`` (B, T+1, nq) and mean cable ``tensions`` (B, T, C) per step."""
+        commands, _ = as_real_array(commands, "commands", (None, None, self.robot.n_cables))
+        B, T, C = commands.shape
+        self.reset(B)
+        qs, qds, tensions = [self.q], [self.qd], np.zeros((B, T, C))
+        for t in range(T):
+            tensions[:, t] = self.step(commands[:, t])
+            qs.append(self.q)
+            qds.append(self.qd)
+        qs, qds = np.stack(qs, 1), np.stack(qds, 1)
+        states = self.sim.tip_state(qs.reshape(-1, self.sim.nq), qds.reshape(-1, self.sim.nq)).reshape(B, T + 1, 6)
+        return dict(states=states, q=qs, tensions=tensions)
+
+
+def twin_camera(sim: Simulator, gap: RealityGap = NO_GAP) -> vision.Camera:
+    """The camera of the replay: on the rod's axis, CAMERA_DISTANCE beyond its rest tip."""
+    rest_tip = sim.tip_positions(sim.rest_q()[None])[0]
+    return vision.camera_facing(rest_tip, CAMERA_DISTANCE, depth_noise=gap.depth_noise, pixel_noise=gap.pixel_noise)
+
+
+def observe_run(sim: Simulator, q, camera: vision.Camera, seed: int = 0):
+    """Render a rod motion q (T+1, nq) sampled at DT and track its tip marker: (frame times, (K, 3))."""
+    positions, _ = sim.centerline(q)
+    times = np.arange(len(q)) * DT
+    return vision.observe(
+        times,
+        positions[:, -1],
+        camera,
+        np.random.default_rng(seed),
+        centerlines=positions,
+        rod_diameter=sim.robot.diameter,
+    )
+
+
+def stroboscope_run(sim: Simulator, q, camera: vision.Camera, interval: float = 0.4, seed: int = 0) -> np.ndarray:
+    """One multi-exposure picture of a rod motion q (T+1, nq): a frame every ``interval`` s."""
+    every = int(round(interval / DT))
+    if every < 1:
+        raise ValueError(f"interval must be at least one sample ({DT} s); got {interval!r}")
+    positions, _ = sim.centerline(q[::every])
+    frames = vision.render(positions[:, -1], camera, seed, centerlines=positions, rod_diameter=sim.robot.diameter)
+    return vision.stroboscope((color for color, _ in frames), every=1)
+
+
+def tracked_rmse(frame_times, tracked, reference) -> float:
+    """3D RMSE (m) of a camera track against a reference sampled at DT, over the frames inside
+    the reference's mask that found the marker."""
+    frame_times, tracked = np.asarray(frame_times, float), np.asarray(tracked, float)
+    index = np.round(frame_times / DT).astype(int)
+    if index.min() < 0 or index.max() >= len(reference.states):
+        raise ValueError("frame times must lie within the reference")
+    t_ref = np.arange(len(reference.states)) * DT
+    expected = np.stack([np.interp(frame_times, t_ref, reference.states[:, k]) for k in range(3)], -1)
+    scored = reference.mask[index] & np.isfinite(tracked).all(1)
+    if not scored.any():
+        raise ValueError("no tracked frame falls inside the reference's mask")
+    return float(np.sqrt(np.mean(np.sum((tracked[scored] - expected[scored]) ** 2, axis=1))))
+
+
+class TwinRig:
+    """The twin as a rig for ``loop.run_loop``. ``command(u)`` turns u into motor commands
+    (``StepCommands``) and advances the plant across ``gap`` by DT; ``measure()`` returns the camera frames
+    that have arrived by then: taken at the camera's frame rate (at the first control sample
+    at or after each frame time), rendered and tracked, each ``latency`` s late, a share
+    ``dropped`` of them lost (no marker). With a ``calibration``, u becomes motor commands
+    through the identified rod (``Calibration.step_commands``)."""
+
+    def __init__(
+        self,
+        sim: Simulator,
+        gap: RealityGap = NO_GAP,
+        *,
+        latency: float = 0.0,
+        dropped: float = 0.0,
+        seed: int = 0,
+        calibration=None,
+    ):
+        if not (np.isfinite(latency) and latency >= 0 and 0 <= dropped < 1):
+            raise ValueError(f"need latency >= 0 s and 0 <= dropped < 1; got {latency!r}, {dropped!r}")
+        self.sim, self.latency, self.dropped = sim, latency, dropped
+        self.plant, self.camera = CablePlant(sim.robot, sim.gravity, gap), twin_camera(sim, gap)
+        self.plant.reset(1)
+        self.to_motors = StepCommands(sim) if calibration is None else calibration.step_commands()
+        self.rng = np.random.default_rng(seed)
+        self.steps, self.next_frame, self.pending = 0, 0, []
+        self.states, self.q = [self.plant.tip_state()[0]], [self.plant.q[0]]
+        self.commands, self.frame_times, self.tracked = [], [], []
+        self._film()
+
+    def command(self, u) -> None:
+        motor = self.to_motors(u)
+        self.plant.step(motor[None])
+        self.steps += 1
+        self.states.append(self.plant.tip_state()[0])
+        self.q.append(self.plant.q[0])
+        self.commands.append(motor)
+        self._film()
+
+    def measure(self) -> list:
+        now = self.steps * DT + 1e-9
+        arrived = [(taken, position) for arrival, taken, position in self.pending if arrival <= now]
+        self.pending = [frame for frame in self.pending if frame[0] > now]
+        return arrived
+
+    def _film(self):
+        now = self.steps * DT
+        while self.next_frame / self.camera.fps <= now + 1e-9:
+            if self.rng.random() < self.dropped:
+                position = np.full(3, np.nan)
+            else:
+                positions, _ = self.plant.sim.centerline(self.plant.q)
+                frames = vision.render(
+                    positions[:, -1], self.camera, self.rng, centerlines=positions, rod_diameter=self.sim.robot.diameter
+                )
+                position = vision.track(frames, self.camera)[0]
+            self.pending.append((now + self.latency, now, position))
+            self.frame_times.append(now)
+            self.tracked.append(position)
+            self.next_frame += 1

@@ -1,0 +1,59 @@
+"""Inverse models u_t = g(x_{t-K+1}, ..., x_t, x_{t+1}): deterministic baselines and the RF
+family, and the registry that names them.
+
+The registry is the one place that says which class and arguments a name means and which
+models must be trained first (RF-FWD's frozen forward surrogate): the training loop
+trains those and hands them to ``model.attach``, so no model module imports the loop.
+"""
+
+from __future__ import annotations
+
+import inspect
+from dataclasses import dataclass, field
+
+from torch import nn
+
+from .baselines import InverseLSTM, InverseMLP, InverseTransformer, PhysicalMLP
+from .flow import RectifiedFlow
+from .forward import ForwardModel
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    cls: type
+    kwargs: dict = field(default_factory=dict)
+    requires: tuple[str, ...] = ()  # models trained first and passed to ``attach`` by name
+
+
+MODELS = {
+    "mlp": ModelSpec(InverseMLP),
+    "mlp-physical": ModelSpec(PhysicalMLP),
+    "lstm": ModelSpec(InverseLSTM, {"context": 10}),
+    "transformer": ModelSpec(InverseTransformer, {"context": 10}),
+    "forward": ModelSpec(ForwardModel),
+    "rf": ModelSpec(RectifiedFlow),
+    "rf-physical": ModelSpec(RectifiedFlow, {"prior": True}),
+    "rf-fwd": ModelSpec(RectifiedFlow, {"consistency": 1.0}, requires=("forward",)),
+}
+
+
+def model_spec(name: str) -> ModelSpec:
+    if name not in MODELS:
+        raise ValueError(f"model must be one of {sorted(MODELS)}; got {name!r}")
+    return MODELS[name]
+
+
+def resolved_kwargs(name: str, **overrides) -> dict:
+    """Every constructor argument of model ``name``: its class defaults, then the registry's,
+    then ``overrides``. A checkpoint records these, so changing any default makes it stale."""
+    spec = model_spec(name)
+    try:
+        arguments = inspect.signature(spec.cls).bind(**{**spec.kwargs, **overrides})
+    except TypeError as error:
+        raise ValueError(f"bad arguments for model {name!r}: {error}") from error
+    arguments.apply_defaults()
+    return dict(arguments.arguments)
+
+
+def build_model(name: str, **overrides) -> nn.Module:
+    return model_spec(name).cls(**resolved_kwargs(name, **overrides))

@@ -1,0 +1,57 @@
+"""Report: the paper's tables, the results page, the studies' tables and the figures. Only
+notebooks and the CLI import it.
+"""
+
+from softflow.lazy import facade
+
+EXPORTS = {
+    "tables": [
+        "COLUMNS",
+        "MODELS",
+        "LABELS",
+        "SOURCES",
+        "PAPER_TABLE1",
+        "PAPER_TABLE2",
+        "PAPER_TABLE3",
+        "PAPER_TABLE4",
+        "read_result",
+        "our_table",
+        "table1",
+        "table2",
+        "table3",
+        "table4",
+        "markdown",
+        "save_table",
+    ],
+    "provenance": ["CODE", "notebook_wall_times", "machine", "commit"],
+    "results_page": [
+        "FIGURES",
+        "claims",
+        "trust_section",
+        "closed_loop_section",
+        "regime_summary",
+        "where_flows_win_section",
+        "consistency_weight_section",
+        "consistency_term_summary",
+        "design_choices",
+        "relative",
+        "results_page",
+    ],
+    "study_tables": [
+        "table_order",
+        "interval_text",
+        "with_ci",
+        "table1_ci",
+        "best_against_best",
+        "protocol_table",
+        "FLOWS",
+        "data_size_table",
+        "per_step_table",
+        "regime_map",
+        "SIZE_EFFECTS",
+        "size_effects",
+        "lambda_decision",
+    ],
+}
+SUBMODULES = ["plots"]
+__getattr__, __dir__, __all__ = facade(__name__, EXPORTS, SUBMODULES)

@@ -1,0 +1,308 @@
+"""Dynamics of the geometric-variable-strain (GVS) rod: a cable-driven Cosserat rod, batched
+in numpy. Kinematics (strain basis, frames, Jacobians) live in ``kinematics``, equilibria
+and inverse statics in ``statics``; equation numbers refer to docs/simulator.md.
+
+Dynamics (Lagrange in the strain coordinates q, D1):
+
+    M(q) qdd + c(q, qd) + K q + D qd = B u + G(q)
+
+with K = int Phi^T EI Phi ds (diagonal for Legendre), D = (eta/E) K (Kelvin-Voigt),
+B the cable map (a constant body moment u r over the length), G gravity and
+c = sum_n m_n Jp_n^T (d/dt Jp_n) qd the convective term (D2). Mass is lumped at the
+segment ends (trapezoid weights); rotary inertia of the cross-section, (D/L)^2 ~ 1e-4 of
+the translational one, is neglected. Time stepping (D3) is linearly implicit
+trapezoidal: K and D (stiff, constant) implicit, M, G and c at an explicit half step, so
+the stiff overdamped high modes stay stable at the 0.01 s sampling with a few substeps.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import asdict
+
+import numpy as np
+from tqdm import tqdm
+
+from softflow.checks import as_real_array, check_choice
+from softflow.rod import statics
+from softflow.rod.kinematics import RodKinematics, rowwise
+from softflow.rod.robots import Robot
+
+SIMULATOR_VERSION = 1  # bump when a number the simulator produces changes (it keys every cache)
+GRAVITY = 9.81  # m/s^2
+GRAVITY_DIRECTIONS = {
+    "vertical": np.array([GRAVITY, 0.0, 0.0]),  # along +x: the rod hangs
+    "horizontal": np.array([0.0, 0.0, -GRAVITY]),  # across the rod, along -z
+    "none": np.zeros(3),
+}
+# Step of the central differences along qd (velocities, convective term): the largest
+# curvature coefficient moves by 1e-3 1/m, i.e. the rod turns by about 4e-4 rad. Measured
+# on a random episode against the exact Jacobian and a Richardson estimate (docs/simulator.md,
+# D2): tip velocity 1.4e-8 relative error; convective force 4e-7, where round-off of the
+# second difference dominates (truncation ~eps^2 takes over above 3e-3; 1e-2 gives 6e-7).
+_CONVECTIVE_STEP = 1e-3  # 1/m
+
+
+class Simulator:
+    """Batched GVS rod: rollouts, statics and inverse statics.
+
+    Parameters
+    ----------
+    robot: physical parameters (``SIM_ROBOT`` or ``HW_ROBOT``).
+    gravity: "vertical" (along +x), "horizontal" (along -z) or "none".
+    order: highest Legendre degree of each curvature (q has 2 (order+1) entries).
+    n_segments: segments of the spatial integration.
+    substeps: time steps per ``dt`` sample.
+    damping: False switches the Kelvin-Voigt damping off (for validation).
+    threads, chunk_size: rollouts run in chunks of ``chunk_size`` episodes on
+        ``threads`` threads (default: up to 2); results do not depend on either.
+    """
+
+    def __init__(
+        self,
+        robot: Robot,
+        gravity: str = "vertical",
+        *,
+        order: int = 3,
+        n_segments: int = 32,
+        substeps: int = 4,
+        dt: float = 0.01,
+        damping: bool = True,
+        threads: int | None = None,
+        chunk_size: int = 256,
+    ):
+        if not isinstance(robot, Robot):
+            raise ValueError(f"robot must be a softflow.robots.Robot (e.g. SIM_ROBOT); got {type(robot).__name__}")
+        check_choice(gravity, "gravity", GRAVITY_DIRECTIONS)
+        for name, value, low in (
+            ("order", order, 0),
+            ("n_segments", n_segments, 1),
+            ("substeps", substeps, 1),
+            ("chunk_size", chunk_size, 1),
+            ("threads", 1 if threads is None else threads, 1),
+        ):
+            if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or value < low:
+                raise ValueError(f"{name} must be an integer >= {low}; got {value!r}")
+        if not (
+            isinstance(dt, (int, float, np.floating, np.integer))
+            and not isinstance(dt, bool)
+            and math.isfinite(dt)
+            and dt > 0
+        ):
+            raise ValueError(f"dt must be a positive number of seconds; got {dt!r}")
+        self.robot, self.gravity, self.order, self.damping = robot, gravity, order, damping
+        self.n_segments, self.substeps, self.dt = n_segments, substeps, dt
+        self.threads, self.chunk_size = threads or min(2, os.cpu_count() or 1), chunk_size
+        self.g = GRAVITY_DIRECTIONS[gravity]
+        self.kinematics = RodKinematics(robot.length, order, n_segments)
+        self.n_modes, self.nq = self.kinematics.n_modes, self.kinematics.nq
+        L, N = robot.length, n_segments
+
+        # K = int Phi^T EI Phi ds = EI L / (2m + 1) per mode (Legendre orthogonality); D = (eta/E) K (D1).
+        modal = robot.bending_stiffness * L / (2 * np.arange(self.n_modes) + 1)
+        self.stiffness = np.diag(np.concatenate([modal, modal]))  # (nq, nq)
+        self.damping_matrix = (
+            (robot.damping / robot.youngs_modulus) * self.stiffness if damping else np.zeros_like(self.stiffness)
+        )
+        # Cable map: constant body moment u_i r over the length -> r int P_m ds = r L delta_m0.
+        self.cable_map = np.zeros((self.nq, 2))  # (nq, 2)
+        self.cable_map[0, 0] = self.cable_map[self.n_modes, 1] = robot.cable_radius * L
+        # Lumped masses at segment ends 1..N (trapezoid weights; node 0 is clamped).
+        self.node_mass = np.full(N, robot.mass_per_length * self.kinematics.ds)
+        self.node_mass[-1] /= 2
+        self._rest_q = self._static_table = None
+
+    @property
+    def u_bound(self) -> float:
+        """|u| (N) that curls the rod into a full circle without gravity (2 pi EI / (r L)):
+        beyond it the model (no self-contact) means nothing, so larger inputs are refused."""
+        r = self.robot
+        return 2 * math.pi * r.bending_stiffness / (r.cable_radius * r.length)
+
+    def spec(self) -> dict:
+        """Every number that decides what this simulator computes: the key of its caches
+        (the robot's parameters, not its name; not threads or chunk_size)."""
+        robot = {k: v for k, v in asdict(self.robot).items() if k != "name"}
+        return dict(
+            robot=robot,
+            gravity=self.gravity,
+            order=self.order,
+            n_segments=self.n_segments,
+            substeps=self.substeps,
+            dt=self.dt,
+            damping=self.damping,
+            version=SIMULATOR_VERSION,
+        )
+
+    def _actuation(self, u, shape):
+        """u as a finite array of ``shape`` within the bound: unit mistakes fail loudly."""
+        u, _ = as_real_array(u, "u", shape)
+        if u.shape[0] == 0:
+            raise ValueError("u must hold at least one episode (its batch axis is empty)")
+        worst = np.linalg.norm(u, axis=-1).max() if u.size else 0.0
+        if worst > self.u_bound:
+            raise ValueError(
+                f"|u| = {worst:.3g} N exceeds {self.u_bound:.1f} N, the actuation that curls "
+                f"{self.robot.name!r} into a full circle (u in newtons?)"
+            )
+        return u
+
+    # ------------------------------------------------------------------ kinematics
+    def centerline(self, q):
+        """Rod shape: node positions (B, N+1, 3) and rotations (B, N+1, 3, 3), base first."""
+        q, _ = as_real_array(q, "q", (None, self.nq))
+        return self.kinematics.centerline(q)
+
+    def tip_positions(self, q):
+        """Tip position for generalized coordinates q (B, nq) -> (B, 3)."""
+        return self.kinematics.tip_positions(q)
+
+    def tip_state(self, q, qd):
+        """Tip position and velocity (B, 6); velocity by a central difference along qd (D2)."""
+        plus, minus, eps = self.kinematics.positions_along(q, qd, _CONVECTIVE_STEP)
+        return np.concatenate([self.tip_positions(q), (plus[:, -1] - minus[:, -1]) / (2 * eps)], -1)
+
+    def bend_angles(self, q):
+        """Total bend angle of each curvature, int kappa_i ds (B, 2): what the cables feel."""
+        q, _ = as_real_array(q, "q", (None, self.nq))
+        return q[:, [0, self.n_modes]] * self.robot.length
+
+    # ------------------------------------------------------------------ dynamics
+    def _convective_force(self, Jp, q, qd, positions):
+        """c = sum_n m_n Jp_n^T (d Jp_n/dt) qd (D2): the node accelerations along qd by a
+        second central difference of the exact positions."""
+        plus, minus, eps = self.kinematics.positions_along(q, qd, _CONVECTIVE_STEP)
+        acceleration = (plus - 2 * positions + minus) / (eps**2)[..., None]
+        weighted = (acceleration * self.node_mass[:, None]).reshape(len(q), 1, -1)  # (B, 1, 3N)
+        return (weighted @ Jp.reshape(len(q), -1, self.nq))[:, 0]
+
+    def _dynamics_terms(self, q):
+        """Frames, Jp, M(q) = sum_n m_n Jp_n^T Jp_n and the gravity force G(q) (D1)."""
+        f = self.kinematics.frames(q)
+        Jp = self.kinematics.position_jacobians(f)  # (B, N, 3, nq)
+        flat = (Jp * np.sqrt(self.node_mass)[None, :, None, None]).reshape(Jp.shape[0], -1, self.nq)
+        M = flat.transpose(0, 2, 1) @ flat
+        G = np.einsum("bnik,i,n->bk", Jp, self.g, self.node_mass)
+        return f, Jp, M, G
+
+    def mass_matrix(self, q):
+        """M(q) for q (B, nq) -> (B, nq, nq)."""
+        q, _ = as_real_array(q, "q", (None, self.nq))
+        return self._dynamics_terms(q)[2]
+
+    def energy(self, q, qd):
+        """Kinetic + elastic + gravitational energy (J) of each rod, (B,)."""
+        _, _, M, _ = self._dynamics_terms(q)
+        kinetic = 0.5 * np.einsum("bi,bij,bj->b", qd, M, qd)
+        elastic = 0.5 * np.einsum("bi,ij,bj->b", q, self.stiffness, q)
+        gravity = -np.einsum("bni,i,n->b", self.kinematics.frames(q)["positions"], self.g, self.node_mass)
+        return kinetic + elastic + gravity
+
+    def rest_q(self):
+        """Gravity equilibrium with slack cables (straight rod when gravity is along it)."""
+        if self._rest_q is None:
+            self._rest_q = statics.equilibrium(self, np.zeros((1, 2)))[0][0]
+        return self._rest_q.copy()
+
+    def _step(self, q, qd, force, h):
+        """One linearly implicit trapezoidal step (D3): K, D implicit; M, G at the explicit
+        half step; the convective force predicted with qd, then corrected once with the
+        mean velocity of the step (keeps it second order and the energy balance tight)."""
+        q_half = q + 0.5 * h * qd
+        f, Jp, M, G = self._dynamics_terms(q_half)
+        K, D = self.stiffness, self.damping_matrix
+        implicit = 0.5 * h * D + 0.25 * h * h * K
+        lhs = M + implicit
+        known = np.einsum("bij,bj->bi", M, qd) - rowwise(qd, implicit.T) + h * (force + G - rowwise(q, K.T))
+        qd_next = qd
+        for _ in range(2):  # predictor, corrector
+            c = self._convective_force(Jp, q_half, 0.5 * (qd + qd_next), f["positions"])
+            qd_next = np.linalg.solve(lhs, (known - h * c)[..., None])[..., 0]
+        return q + 0.5 * h * (qd + qd_next), qd_next
+
+    def _advance(self, u, q, qd):
+        """Sample-by-sample integration of one chunk; q, qd at the T+1 sample times."""
+        B, T, _ = u.shape
+        qs, qds = np.empty((B, T + 1, self.nq)), np.empty((B, T + 1, self.nq))
+        qs[:, 0], qds[:, 0] = q, qd
+        h = self.dt / self.substeps
+        for t in range(T):
+            force = rowwise(u[:, t], self.cable_map.T)
+            for _ in range(self.substeps):
+                q, qd = self._step(q, qd, force, h)
+            qs[:, t + 1], qds[:, t + 1] = q, qd
+        return qs, qds
+
+    def _map_chunks(self, work, B, progress):
+        """Run work(slice) over cache-sized chunks of the batch on a thread pool (numpy
+        releases the GIL) and concatenate the results along the batch axis."""
+        size = min(self.chunk_size, -(-B // self.threads))  # every thread gets work
+        chunks = [slice(i, min(i + size, B)) for i in range(0, B, size)]
+        if len(chunks) == 1 and not progress:  # a closed loop's step: a pool's thread costs more than the work
+            return list(work(chunks[0]))
+        with (
+            ThreadPoolExecutor(self.threads) as pool,
+            tqdm(total=B, disable=not progress, desc="simulating", unit="episode") as bar,
+        ):
+            results = []
+            for chunk, result in zip(chunks, pool.map(work, chunks)):
+                results.append(result)
+                bar.update(chunk.stop - chunk.start)
+        return [np.concatenate(parts) for parts in zip(*results)]
+
+    def integrate(self, u, q0, qd0, *, progress: bool = False):
+        """Advance every rod through u (B, T, 2) from (q0, qd0) (B, nq); zero-order hold.
+
+        Returns q and qd at the T+1 sample times, each (B, T+1, nq).
+        """
+        u = self._actuation(u, (None, None, 2))
+        B = u.shape[0]
+        q0, _ = as_real_array(np.broadcast_to(q0, (B, self.nq)), "q0", (B, self.nq))
+        qd0, _ = as_real_array(np.broadcast_to(qd0, (B, self.nq)), "qd0", (B, self.nq))
+        return self._map_chunks(lambda c: self._advance(u[c], q0[c], qd0[c]), B, progress)
+
+    def rollout(self, u, *, start_q=None, progress: bool = False):
+        """Tip states (B, T+1, 6) = [p, v] for actuation u (B, T, 2) from rest: the rest pose,
+        or ``start_q`` (B, nq) (e.g. an equilibrium, ``static_q``) at zero velocity."""
+        u = self._actuation(u, (None, None, 2))
+        B = u.shape[0]
+        q0 = self.rest_q() if start_q is None else as_real_array(start_q, "start_q", (B, self.nq))[0]
+        q0, qd0 = np.broadcast_to(q0, (B, self.nq)), np.zeros((B, self.nq))
+
+        def work(c):
+            qs, qds = self._advance(u[c], q0[c], qd0[c])
+            return (np.stack([self.tip_state(qs[:, t], qds[:, t]) for t in range(qs.shape[1])], 1),)
+
+        return self._map_chunks(work, B, progress)[0]
+
+    # ------------------------------------------------------------------ statics (softflow.statics)
+    def static_q(self, u):
+        """Equilibrium generalized coordinates for actuation u (B, 2) -> (B, nq)."""
+        return statics.equilibrium(self, self._actuation(u, (None, 2)))[0]
+
+    def static_tip(self, u):
+        """Equilibrium tip position for constant actuation u (B, 2) -> (B, 3)."""
+        return statics.static_tip(self, self._actuation(u, (None, 2)))
+
+    def inverse_static(self, p, tol=1e-10, max_iter=50, max_residual=None):
+        """Least-squares actuation whose equilibrium tip is closest to p (B, 3) -> (B, 2);
+        ValueError for a point farther than ``max_residual`` (m; default a quarter of the
+        rod's length) from every equilibrium tip: wrong units or frame."""
+        p, _ = as_real_array(p, "p", (None, 3))
+        if p.shape[0] == 0:
+            raise ValueError("p must hold at least one point (its batch axis is empty)")
+        return statics.inverse_static(self, p, tol, max_iter, max_residual)
+
+    def static_lift(self, yz, u_max: float = 4.0):
+        """The equilibrium whose tip has lateral position yz (B, 2): tip p (B, 3), actuation
+        u (B, 2) and d p / d(y, z) (B, 3, 2), for lifting y-z paths to 3D."""
+        yz, _ = as_real_array(yz, "yz", (None, 2))
+        return statics.static_lift(self, yz, u_max)
+
+    def static_table(self) -> statics.StaticTable:
+        """The tabulated statics of this rod (the RF-Physical prior), built once per simulator."""
+        if self._static_table is None:
+            self._static_table = statics.StaticTable(self)
+        return self._static_table

@@ -1,0 +1,207 @@
+"""Statics of the GVS rod: equilibria, inverse statics, lifting y-z paths to 3D, and a
+tabulated inverse for millions of points (the prior of RF-Physical).
+
+Every function takes a ``Simulator`` (its stiffness K, cable map B, gravity and
+kinematics); equation numbers (S1)-(S3) refer to docs/simulator.md.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.interpolate import RectBivariateSpline
+from scipy.optimize import least_squares
+from tqdm import tqdm
+
+from softflow.checks import as_real_array
+from softflow.rod.robots import Robot
+from softflow.store import DATA_DIR, cache_file, cached_arrays
+
+STATICS_VERSION = 1  # bump when a number the table or the solvers produce changes
+# inverse_static refuses a point farther than this fraction of the rod's length from every
+# equilibrium tip: wrong units or frame, not the few centimetres a moving rod's tip is off
+# the static surface (RF-Physical's prior is the inverse statics of such points).
+MAX_RESIDUAL = 0.25
+
+
+def gravity_force(sim, q):
+    """G(q) = sum_n m_n Jp_n^T g, the generalized gravity force (S1)."""
+    return np.einsum("bnik,i,n->bk", sim.kinematics.position_jacobians(sim.kinematics.frames(q)), sim.g, sim.node_mass)
+
+
+def tangent_stiffness(sim, q, G):
+    """K - dG/dq, the gravity part by forward differences (K is exact)."""
+    if sim.gravity == "none":
+        return np.broadcast_to(sim.stiffness, (q.shape[0], sim.nq, sim.nq))
+    step = 1e-6
+    shifted = (q[:, None, :] + step * np.eye(sim.nq)[None]).reshape(-1, sim.nq)
+    dG = (gravity_force(sim, shifted).reshape(q.shape[0], sim.nq, sim.nq) - G[:, None, :]) / step
+    return sim.stiffness[None] - dG.transpose(0, 2, 1)
+
+
+def equilibrium(sim, u, q=None, tol=1e-12, max_iter=50):
+    """Solve K q = B u + G(q) (S1) by Newton; returns q and the tangent stiffness there.
+    Raises RuntimeError when Newton does not converge."""
+    force = u @ sim.cable_map.T  # (B, nq)
+    if q is None:
+        q = np.linalg.solve(sim.stiffness, force.T).T
+    for _ in range(max_iter):
+        G = gravity_force(sim, q)
+        residual = sim.stiffness @ q.T - (force + G).T
+        Kt = tangent_stiffness(sim, q, G)
+        dq = np.linalg.solve(Kt, residual.T[..., None])[..., 0]
+        q = q - dq
+        if np.max(np.abs(dq)) < tol * max(1.0, np.max(np.abs(q))):
+            return q, Kt
+    raise RuntimeError(f"static equilibrium did not converge in {max_iter} Newton steps")
+
+
+def arc_actuation(robot: Robot, p):
+    """Actuation (B, 2) of the gravity-free circular arc whose tip chord points at p (B, 3):
+    a uniform bend by 2 atan2(lateral, x) (S2), the closed-form start of inverse statics."""
+    lateral = np.hypot(p[:, 1], p[:, 2])
+    bend = 2 * np.arctan2(lateral, p[:, 0])
+    heading = np.arctan2(p[:, 2], p[:, 1])
+    magnitude = bend / robot.length * robot.bending_stiffness / robot.cable_radius
+    return magnitude[:, None] * np.stack([np.cos(heading), np.sin(heading)], -1)
+
+
+def fit_static(sim, target, rows, u, tol=1e-10, max_iter=50, u_limit=np.inf):
+    """Gauss-Newton on u so that the equilibrium tip matches ``target`` in coordinates
+    ``rows``, through d p/d u = Jp_tip Kt^-1 B (S3). Returns u, the tip and d p/d u (B, 3, 2).
+    Raises RuntimeError when it does not converge or an iterate needs |u| > u_limit."""
+    q = None
+    for _ in range(max_iter):
+        if np.abs(u).max() > u_limit:
+            raise RuntimeError(f"static fit needs |u| > {u_limit} N")
+        q, Kt = equilibrium(sim, u, q)
+        f = sim.kinematics.frames(q)
+        J_tip = sim.kinematics.position_jacobians(f)[:, -1]  # (B, 3, nq)
+        dp_du = J_tip @ np.linalg.solve(Kt, np.broadcast_to(sim.cable_map, Kt.shape[:1] + sim.cable_map.shape))
+        J = dp_du[:, rows]
+        error = target[:, rows] - f["positions"][:, -1, rows]
+        JT = J.transpose(0, 2, 1)
+        du = np.linalg.solve(JT @ J, JT @ error[..., None])[..., 0]  # normal equations
+        u = u + du
+        if np.max(np.abs(du)) < tol:
+            return u, f["positions"][:, -1], dp_du
+    raise RuntimeError(f"static fit did not converge in {max_iter} Gauss-Newton steps")
+
+
+def static_tip(sim, u):
+    """Equilibrium tip position for constant actuation u (B, 2) -> (B, 3)."""
+    return sim.kinematics.tip_positions(equilibrium(sim, u)[0])
+
+
+def inverse_static(sim, p, tol=1e-10, max_iter=50, max_residual=None):
+    """Least-squares actuation whose equilibrium tip is closest to p (B, 3) -> (B, 2).
+
+    Gauss-Newton from the gravity-free arc through p (S2, S3). A point whose best fit is
+    farther than ``max_residual`` (m; default MAX_RESIDUAL x the rod's length) from p, or
+    that needs |u| beyond the simulator's bound, is outside the static workspace:
+    ValueError with the residual of the nearest equilibrium found."""
+    if max_residual is None:
+        max_residual = MAX_RESIDUAL * sim.robot.length
+    u0 = arc_actuation(sim.robot, p)
+    u0 *= np.minimum(1.0, sim.u_bound / np.maximum(np.linalg.norm(u0, axis=-1), 1e-300))[:, None]
+    try:
+        u, residual = _fit_points(sim, p, u0, tol, max_iter)
+    except (RuntimeError, np.linalg.LinAlgError):  # some point has no fit: find out which, one at a time
+        u, residual = map(
+            np.concatenate,
+            zip(*(_fit_points(sim, p[i : i + 1], u0[i : i + 1], tol, max_iter, fallback=True) for i in range(len(p)))),
+        )
+    outside = np.flatnonzero(~(residual <= max_residual) | (np.linalg.norm(u, axis=-1) > sim.u_bound))
+    if len(outside):
+        i = outside[0]
+        nearest = _nearest_equilibrium(sim, p[i], u0[i])
+        raise ValueError(
+            f"p[{i}] = {np.round(p[i], 4).tolist()} m is outside the static workspace: the nearest "
+            f"equilibrium found (|u| <= {sim.u_bound:.1f} N) is {1e3 * nearest:.1f} mm away, more than "
+            f"max_residual = {1e3 * max_residual:.1f} mm (is p in metres, robot frame?)"
+        )
+    return u
+
+
+def _fit_points(sim, p, u0, tol, max_iter, fallback=False):
+    """Gauss-Newton fit of every point and its residual (m); with ``fallback`` a point that
+    has no fit gets its start u0 and an infinite residual instead of an exception."""
+    try:
+        u, tip, _ = fit_static(sim, p, [0, 1, 2], u0, tol, max_iter, u_limit=sim.u_bound)
+    except (RuntimeError, np.linalg.LinAlgError):
+        if not fallback:
+            raise
+        return u0, np.full(len(p), np.inf)
+    return u, np.linalg.norm(tip - p, axis=-1)
+
+
+def _nearest_equilibrium(sim, p, u0) -> float:
+    """Distance (m) from p to the closest equilibrium tip a bounded local search finds from u0."""
+    bound = sim.u_bound / np.sqrt(2)  # the box inside the disc |u| <= u_bound
+    fit = least_squares(lambda u: static_tip(sim, u[None])[0] - p, np.clip(u0, -bound, bound), bounds=(-bound, bound))
+    return float(np.linalg.norm(fit.fun))
+
+
+def static_lift(sim, yz, u_max: float = 4.0):
+    """The equilibrium whose tip has lateral position yz (B, 2): tip p (B, 3), actuation
+    u (B, 2) and d p / d(y, z) (B, 3, 2), for lifting y-z paths to 3D.
+
+    Raises ValueError for a point outside the static workspace |u_i| <= u_max."""
+    r = sim.robot
+    u = 2 * yz / r.length**2 * r.bending_stiffness / r.cable_radius  # small-deflection guess
+    try:
+        u, tip, dp_du = fit_static(sim, np.concatenate([np.zeros((len(yz), 1)), yz], 1), [1, 2], u, u_limit=2 * u_max)
+    except (RuntimeError, np.linalg.LinAlgError) as error:
+        raise ValueError("y-z path leaves the reachable static workspace (no equilibrium found)") from error
+    worst = np.abs(u).max()
+    if worst > u_max:
+        raise ValueError(f"y-z path leaves the reachable static workspace: needs |u| = {worst:.2f} N > {u_max} N")
+    return tip, u, dp_du @ np.linalg.inv(dp_du[:, 1:])
+
+
+class StaticTable:
+    """Equilibrium tip p(u) on [-u_range, u_range]^2, sampled every ``step`` N, as bicubic
+    splines: inverse statics on millions of points in seconds instead of hours."""
+
+    def __init__(self, sim, u_range: float = 6.0, step: float = 0.2, progress: bool = False):
+        self.robot, self.u_range = sim.robot, u_range
+        grid = np.linspace(-u_range, u_range, int(round(2 * u_range / step)) + 1)
+        spec = dict(simulator=sim.spec(), u_range=u_range, step=step, version=STATICS_VERSION)
+
+        def compute():
+            u = np.stack(np.meshgrid(grid, grid, indexing="ij"), -1).reshape(-1, 2)
+            chunks = [
+                static_tip(sim, u[i : i + 256])
+                for i in tqdm(range(0, len(u), 256), disable=not progress, desc="static table")
+            ]
+            return dict(tips=np.concatenate(chunks).reshape(len(grid), len(grid), 3))
+
+        tips = cached_arrays(
+            cache_file(DATA_DIR, "static-table", spec),
+            compute,
+            valid=lambda a: a.get("tips") is not None and a["tips"].shape == (len(grid), len(grid), 3),
+        )["tips"]
+        self.splines = [RectBivariateSpline(grid, grid, tips[..., i], kx=3, ky=3) for i in range(3)]
+
+    def tip(self, u):
+        """Tip (B, 3) and its Jacobian d p / d u (B, 3, 2) from the splines."""
+        u1, u2 = u[:, 0], u[:, 1]
+        p = np.stack([s.ev(u1, u2) for s in self.splines], -1)
+        J = np.stack([np.stack([s.ev(u1, u2, dx=1), s.ev(u1, u2, dy=1)], -1) for s in self.splines], 1)
+        return p, J
+
+    def inverse(self, p, iterations: int = 12) -> np.ndarray:
+        """Least-squares actuation for tip positions p (..., 3) -> (..., 2), clipped to the table.
+
+        Same answer as ``inverse_static`` inside the table (to the spline accuracy), for
+        any number of points at once."""
+        batch_shape = np.shape(p)[:-1]
+        if np.shape(p)[-1:] != (3,):
+            raise ValueError(f"p must have shape (..., 3); got {np.shape(p)}")
+        p, _ = as_real_array(np.reshape(p, (-1, 3)), "p", (None, 3))
+        u = np.clip(arc_actuation(self.robot, p), -self.u_range, self.u_range)
+        for _ in range(iterations):
+            tip, J = self.tip(u)
+            JT = J.transpose(0, 2, 1)
+            du = np.linalg.solve(JT @ J + 1e-12 * np.eye(2), JT @ (p - tip)[..., None])[..., 0]
+            u = np.clip(u + du, -self.u_range, self.u_range)
+        return u.reshape(batch_shape + (2,))

@@ -1,0 +1,24 @@
+"""Studies: the Dask sweep runner, one module per study, statistics. Imports everything below
+report.
+"""
+
+from softflow.lazy import facade
+
+EXPORTS = {
+    "registry": ["STUDIES"],
+    "study": ["FLOOR", "Study", "floor_rows", "held_out_plan", "unnamed"],
+}
+SUBMODULES = [
+    "sweep",
+    "stats",
+    "stress",
+    "protocol",
+    "ambiguity",
+    "table1",
+    "data_size",
+    "fwd_lambda",
+    "closed_loop",
+    "twin_burst",
+    "smoke",
+]
+__getattr__, __dir__, __all__ = facade(__name__, EXPORTS, SUBMODULES)

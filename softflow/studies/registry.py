@@ -1,0 +1,43 @@
+"""The studies ``python -m softflow sweep`` runs: each a grid of independent cells and the
+function that turns one cell into result rows. A new study is one entry in ``STUDIES``.
+
+table1: Tables I and II with confidence intervals. Every model of the paper at its own
+    budget, three training seeds (seed 0 is the shipped model), scored open loop on the
+    eight shapes and 24 random references (Rand1..Rand4 are the paper's), plus the ILC floor.
+protocol: Table I under each choice the paper leaves open (``protocol``), with the seed-0
+    models (no retraining) and the ILC floor; the conditions were fixed before any ran.
+data_size: issue 15's first question, fixed before any ran: is it the prior or being
+    generative that helps? MLP, MLP-Physical, RF and RF-Physical trained on 100 / 300 / 1000 /
+    3000 episodes, 3 seeds, the same 20 000 optimiser steps each (no early stop), scored on
+    Table I's references and per step on the held-out test episodes.
+closed_loop: Table III extended: the twin's RF-FWD open loop and in closed loop (``loop``):
+    integral correction, the model conditioned on the estimate instead of the reference,
+    learning across repetitions, each also calibrated on an identification run
+    (``calibration``); camera latency 0 / 33 / 66 ms and 10 % lost frames; open / calibrated
+    open / closed / calibrated closed under each doubled gap term.
+ambiguity: issue 15's inverses that are genuinely ambiguous, fixed before any ran: the MLP
+    against RF and RF-FWD on each dataset variant (``variants``: a folded workspace, a weakly
+    damped rod under piecewise-constant actuation, positions only, finite-difference
+    velocities with 0 / 0.5 / 2 mm position noise), per step and open loop.
+fwd_lambda: RF-FWD's consistency weight, fixed before any ran: lambda 0 / 0.03 / 0.1 / 0.3 / 1
+    at the full budget, 3 seeds, with what the consistency term sees (the surrogate's error,
+    the one-step endpoint estimate against a short Euler rollout).
+twin_burst: where the twin's loops break: the burst circle continued to a 0.2 s period, open
+    loop, closed loop and learning across repetitions, scored per revolution.
+"""
+
+from __future__ import annotations
+
+from softflow.studies import ambiguity, closed_loop, data_size, fwd_lambda, protocol, smoke, table1, twin_burst
+from softflow.studies.study import Study
+
+STUDIES = {
+    "smoke": Study(smoke.cells, smoke.run),
+    "table1": Study(table1.cells, table1.run),
+    "protocol": Study(protocol.cells, protocol.run),
+    "data_size": Study(data_size.cells, data_size.run),
+    "closed_loop": Study(closed_loop.cells, closed_loop.run, version=2),
+    "twin_burst": Study(twin_burst.cells, twin_burst.run),
+    "ambiguity": Study(ambiguity.cells, ambiguity.run),
+    "fwd_lambda": Study(fwd_lambda.cells, fwd_lambda.run),
+}

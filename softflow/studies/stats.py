@@ -1,0 +1,102 @@
+"""Confidence intervals for results over training seeds and references.
+
+A Table I number is a mean over two random samples at once: the training seeds (another
+seed, another model) and the references (another reference, another error). The bootstrap
+here resamples both, independently (two-way), so an interval covers what a rerun with new
+seeds on new references of the same families would give. Differences between two models
+are paired over references (both are scored on the same ones) and unpaired over seeds
+(seed 1 of one model has nothing to do with seed 1 of another).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+N_BOOT = 10_000
+LEVEL = 0.95
+
+
+@dataclass(frozen=True)
+class Interval:
+    estimate: float  # the mean over every seed and reference
+    low: float
+    high: float
+
+    @property
+    def excludes_zero(self) -> bool:
+        return self.low > 0 or self.high < 0
+
+
+def _grid(values, name: str) -> np.ndarray:
+    grid = np.asarray(values, float)
+    if grid.ndim != 2 or grid.size == 0 or not np.all(np.isfinite(grid)):
+        raise ValueError(
+            f"{name} must be a finite (seeds, references) array with at least one entry; got shape {grid.shape}"
+        )
+    return grid
+
+
+def _resampled_means(grid: np.ndarray, references: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    seeds = rng.integers(0, len(grid), (len(references), len(grid)))
+    return grid[seeds[:, :, None], references[:, None, :]].mean(axis=(1, 2))
+
+
+def bootstrap(a, b=None, *, n_boot: int = N_BOOT, level: float = LEVEL, seed: int = 0) -> Interval:
+    """Percentile interval of mean(a), or of mean(a) - mean(b) when ``b`` is given; ``a`` and
+    ``b`` are (seeds, references) arrays over the same references in the same order (their
+    seed counts may differ)."""
+    a = _grid(a, "a")
+    if b is not None:
+        b = _grid(b, "b")
+        if b.shape[1] != a.shape[1]:
+            raise ValueError(f"a and b must score the same references; got {a.shape[1]} and {b.shape[1]} columns")
+    if not (0 < level < 1 and isinstance(n_boot, int) and n_boot >= 100):
+        raise ValueError(f"need 0 < level < 1 and an integer n_boot >= 100; got {level!r}, {n_boot!r}")
+    rng = np.random.default_rng(seed)
+    references = rng.integers(0, a.shape[1], (n_boot, a.shape[1]))  # shared: the pairing
+    means = _resampled_means(a, references, rng)
+    estimate = a.mean()
+    if b is not None:
+        means = means - _resampled_means(b, references, rng)
+        estimate -= b.mean()
+    low, high = np.quantile(means, [(1 - level) / 2, (1 + level) / 2])
+    return Interval(float(estimate), float(low), float(high))
+
+
+def seed_reference_grid(rows: pd.DataFrame, value: str) -> np.ndarray:
+    """One model's rows (columns seed, reference, ``value``) as a (seeds, references) array,
+    references in the order of first appearance."""
+    grid = rows.pivot_table(index="seed", columns="reference", values=value, sort=False)
+    if grid.isna().any().any():
+        raise ValueError(f"{value}: not every seed scored every reference")
+    return grid[list(dict.fromkeys(rows["reference"]))].to_numpy()
+
+
+def summarise(rows: pd.DataFrame, value: str = "rmse_mm", by=("model", "family"), **options) -> pd.DataFrame:
+    """Mean of ``value`` with its two-way bootstrap interval for each group of ``by``, and
+    the seeds and references it rests on."""
+    out = []
+    for group, part in rows.groupby(list(by), sort=False):
+        grid = seed_reference_grid(part, value)
+        interval = bootstrap(grid, **options)
+        out.append(
+            dict(
+                zip(by, group),
+                mean=interval.estimate,
+                low=interval.low,
+                high=interval.high,
+                seeds=grid.shape[0],
+                references=grid.shape[1],
+            )
+        )
+    return pd.DataFrame(out)
+
+
+def difference(rows: pd.DataFrame, model: str, other: str, family: str, value: str = "rmse_mm", **options) -> Interval:
+    """mean(model) - mean(other) of ``value`` on a reference family, paired over references."""
+    part = rows[rows["family"] == family]
+    grids = [seed_reference_grid(part[part["model"] == name], value) for name in (model, other)]
+    return bootstrap(*grids, **options)

@@ -1,0 +1,63 @@
+"""What every study shares: the ``Study`` type, the ILC floor's rows and the held-out per-step
+error.
+"""
+
+from __future__ import annotations
+
+import copy
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from softflow import data
+from softflow.control import floor
+from softflow.control.planning import Controller, SaturationWarning, score
+from softflow.rod.dynamics import Simulator
+
+FLOOR = "ilc-floor"  # the model name of the ILC floor's rows in the studies
+
+
+@dataclass(frozen=True)
+class Study:
+    """A grid of cells and the function that turns one cell into measurements.
+
+    ``cells(profile_name)``: JSON-able dicts, each naming its study, model, seed and condition.
+    ``run_cell(cell, profile_name, device, workdir, key)``: a dict of JSON-able measurements,
+    or a list of them (one row each, e.g. per reference), that depends on nothing but its
+    arguments (its rows are cached by them). ``workdir`` is the study's folder, for files
+    cells share (datasets) or own (name those by ``key``).
+    ``version``: bump it when a change alters the numbers run_cell returns; every cached row
+    of the study is then recomputed.
+    """
+
+    cells: Callable[[str], list[dict]]
+    run_cell: Callable[[dict, str, str, Path, str], dict | list[dict]]
+    version: int = 1
+
+
+def floor_rows(sim: Simulator, references, iterations: int, start_q=None):
+    """The ILC floor's scored row for each reference, and the trial that gave it."""
+    plans, reached, history = floor.ilc_plans(sim, references, iterations=iterations, start_q=start_q)
+    return [score(FLOOR, r, u, X) for r, u, X in zip(references, plans, reached)], np.argmin(history, axis=0)
+
+
+def held_out_plan(controller: Controller, dataset: data.Dataset) -> tuple[np.ndarray, float]:
+    """The controller's plan for the dataset's held-out test episodes and its u error (N, RMS
+    over steps and both inputs), the per-step error every study reports. Planned without the
+    workspace check, whatever the controller's margin (a held-out paper episode lies 10 training
+    standard deviations out: the studies measure extrapolation, they do not refuse it), and
+    without the saturation warning (the clipped plan is what is judged)."""
+    unchecked = copy.copy(controller)
+    unchecked.workspace_margin = None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SaturationWarning)
+        planned = unchecked.plan(dataset.states[dataset.test])
+    return planned, float(np.sqrt(np.mean((planned - dataset.u[dataset.test]) ** 2)))
+
+
+def unnamed(row: dict, **more) -> dict:
+    """A scored row without its model name (the cell names it), with ``more`` columns."""
+    return {**{k: v for k, v in row.items() if k != "model"}, **more}
