@@ -193,3 +193,20 @@ def test_rf_physical_plans_its_prior_plus_a_learned_residual(dataset, trained, t
         silent_plan = silent_controller.plan(states)
     expected = np.clip(prior + silent.residual_norm.mean.numpy(), -U_MAX, U_MAX)
     np.testing.assert_allclose(silent_plan, expected, atol=1e-5)
+
+
+def test_one_euler_step_from_tau_is_the_one_step_endpoint_estimate():
+    """The sampler and RF-FWD's consistency term share one flow: a single Euler step from tau to 1
+    is xi_tau + (1 - tau) v, and predict is the integration from noise at tau = 0."""
+    torch.manual_seed(0)
+    model = RectifiedFlow(hidden=32, layers=2).eval()
+    window = torch.randn(16, 2, 6)
+    condition, xi = model.condition(window), torch.randn(16, 2)
+    with torch.no_grad():
+        for tau in (0.0, 0.3, 0.9):
+            taus = torch.full((16,), tau)
+            np.testing.assert_allclose(
+                model.integrate(xi, condition, 1, start=tau), model.endpoint(xi, taus, condition), atol=1e-6
+            )
+        u = model.predict(window, noise=xi, steps=3)
+        np.testing.assert_array_equal(u, model.target_norm().unnormalize(model.integrate(xi, condition, 3)))

@@ -10,23 +10,34 @@ import pandas as pd
 from softflow.checks import as_real_array
 
 
-def tracking_rmse(achieved, reference, mask=None, axes=(0, 1, 2)) -> float:
-    """RMSE (m) of the tip-position error over the masked samples: sqrt(mean ||p - p*||^2),
-    in 3D by default; ``axes=(1, 2)`` gives the y-z (tip-plane) error of the paper's burst test."""
-    achieved, _ = as_real_array(achieved, "achieved", (None, 6))
-    reference, _ = as_real_array(reference, "reference", (achieved.shape[0], 6))
+def _positions(states, name: str) -> tuple[np.ndarray, int]:
+    """States (T+1, d), tip positions then their velocities, and the number of positions d/2."""
+    states, _ = as_real_array(states, name, (None, None))
+    if states.shape[1] % 2:
+        raise ValueError(f"{name} must hold tip positions and their velocities (an even width); got {states.shape}")
+    return states, states.shape[1] // 2
+
+
+def tracking_rmse(achieved, reference, mask=None, axes=None) -> float:
+    """RMSE (m) of the tip-position error over the masked samples: sqrt(mean ||p - p*||^2), over
+    every position coordinate by default (3-D for the paper's rods); ``axes=(1, 2)`` gives the y-z
+    (tip-plane) error of the paper's burst test."""
+    achieved, n_positions = _positions(achieved, "achieved")
+    reference, _ = as_real_array(reference, "reference", achieved.shape)
     mask = _scored(mask, len(achieved))
-    axes = list(axes)
-    if not set(axes) <= {0, 1, 2} or not axes:
-        raise ValueError(f"axes must be a non-empty subset of the position axes (0, 1, 2); got {axes}")
+    axes = list(range(n_positions) if axes is None else axes)
+    if not set(axes) <= set(range(n_positions)) or not axes:
+        raise ValueError(
+            f"axes must be a non-empty subset of the position axes {tuple(range(n_positions))}; got {axes}"
+        )
     error = achieved[mask][:, axes] - reference[mask][:, axes]
     return float(np.sqrt(np.mean(np.sum(error**2, axis=1))))
 
 
 def peak_speed(states, mask=None) -> float:
-    """Largest tip speed ||v|| (m/s) over the masked samples of a (T+1, 6) trajectory."""
-    states, _ = as_real_array(states, "states", (None, 6))
-    return float(np.linalg.norm(states[_scored(mask, len(states)), 3:], axis=1).max())
+    """Largest tip speed ||v|| (m/s) over the masked samples of a (T+1, d) trajectory."""
+    states, n_positions = _positions(states, "states")
+    return float(np.linalg.norm(states[_scored(mask, len(states)), n_positions:], axis=1).max())
 
 
 def _scored(mask, n: int) -> np.ndarray:
@@ -73,13 +84,13 @@ def fitting_lag(n: int, dt: float, max_lag: float = 0.5) -> float:
 
 def input_energy(u, dt: float) -> float:
     """E_u = sum_t ||u_t||^2 dt (N^2 s)."""
-    u, _ = as_real_array(u, "u", (None, 2))
+    u, _ = as_real_array(u, "u", (None, None))
     return float(np.sum(u**2) * dt)
 
 
 def actuation_mae(u, u_true) -> np.ndarray:
-    """Mean absolute error of each actuation channel (N): (2,)."""
-    u, _ = as_real_array(u, "u", (None, 2))
+    """Mean absolute error of each actuation channel: (m,)."""
+    u, _ = as_real_array(u, "u", (None, None))
     u_true, _ = as_real_array(u_true, "u_true", u.shape)
     return np.abs(u - u_true).mean(0)
 

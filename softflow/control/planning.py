@@ -71,7 +71,7 @@ class Controller:
         self.lean = LeanFlow(model) if self.generative else LeanMLP(model) if isinstance(model, InverseMLP) else None
 
     def step(self, x_t, x_next, *, clip: bool = True) -> np.ndarray:
-        """u_t for one transition, (6,), (6,) -> (2,), or a batch, (B, 6), (B, 6) -> (B, 2): the
+        """u_t for one transition, (d,), (d,) -> (m,), or a batch, (B, d), (B, d) -> (B, m): the
         real-time path (plain numpy, no autograd), the same u as ``plan`` to about 1e-5 N.
         A flow starts from z = 0, as ``plan`` does. u beyond the actuator range is clipped,
         with a ``SaturationWarning`` (``clip=False``: returned as the model gives it, for a
@@ -82,12 +82,13 @@ class Controller:
                 f"{self.name} reads a window of {self.model.context} past transitions: it has no "
                 f"one-transition step; use plan"
             )
-        x, unbatched = as_real_array(x_t, "x_t", (None, 6), allow_unbatched=True)
+        dims = self.model.dims
+        x, unbatched = as_real_array(x_t, "x_t", (None, dims.state), allow_unbatched=True)
         x_next, _ = as_real_array(x_next, "x_next", x.shape[1:] if unbatched else x.shape)
         window = np.stack([x, x_next[None] if unbatched else x_next], 1)
-        prior = self.statics.inverse(window[:, 1, :3]) if self.statics is not None else None
+        prior = self.statics.inverse(window[:, 1, : dims.position]) if self.statics is not None else None
         u = (
-            self.lean.predict(window, np.zeros((len(window), 2)), prior)
+            self.lean.predict(window, np.zeros((len(window), dims.inputs)), prior)
             if self.generative
             else self.lean.predict(window, prior)
         )
@@ -106,7 +107,7 @@ class Controller:
     def plan(
         self, reference, *, noise: str = "zero", seed: int | None = None, n_samples: int = 1, **options
     ) -> np.ndarray:
-        """(T+1, 6) or (B, T+1, 6) reference -> (T, 2) or (B, T, 2) actuation (N), every
+        """(T+1, d) or (B, T+1, d) reference -> (T, m) or (B, T, m) actuation, every
         step predicted in one batched call (the plan depends on the reference only).
         ``n_samples`` > 1 plans with the mean of that many noise draws: a Monte-Carlo
         estimate of E[u | x_t, x_t+1], the plan of least squared actuation error.
@@ -133,7 +134,7 @@ class Controller:
         return np.clip(u, -self.u_limit, self.u_limit)
 
     def sample(self, reference, n: int, *, noise: str = "seeded", seed: int | None = None, **options) -> np.ndarray:
-        """``n`` plans from independent noise draws: (n, T, 2) or (n, B, T, 2), not clipped.
+        """``n`` plans from independent noise draws: (n, T, m) or (n, B, T, m), not clipped.
         Their spread is the flow's own uncertainty about the actuation (a regression model
         has none: ValueError)."""
         if not (isinstance(n, int) and n >= 1):
@@ -141,8 +142,8 @@ class Controller:
         check_choice(noise, "noise", NOISE[1:])
         if not self.generative:
             raise ValueError(f"{self.name} is a regression model: it has no noise to sample")
-        X, unbatched = as_real_array(reference, "reference", (None, None, 6), allow_unbatched=True)
-        u = self._plan(np.tile(X, (n, 1, 1)), noise, seed, options).reshape(n, len(X), -1, 2)
+        X, unbatched = as_real_array(reference, "reference", (None, None, self.model.dims.state), allow_unbatched=True)
+        u = self._plan(np.tile(X, (n, 1, 1)), noise, seed, options).reshape(n, len(X), -1, self.model.dims.inputs)
         return u[:, 0] if unbatched else u
 
     def _check_options(self, noise, options):
@@ -165,12 +166,13 @@ class Controller:
         if self.workspace_margin is None:
             return
         mean, std = (b.numpy().astype(np.float64) for b in (self.model.state_norm.mean, self.model.state_norm.std))
-        score = np.abs(X[..., :3] - mean[:3]) / std[:3]
+        p = self.model.dims.position
+        score = np.abs(X[..., :p] - mean[:p]) / std[:p]
         worst = np.unravel_index(np.argmax(score), score.shape)
         if score[worst] > self.workspace_margin:
             *where, axis = worst
             raise ValueError(
-                f"reference tip position {'xyz'[axis]} = {X[(*where, axis)]:.4g} m at index "
+                f"reference tip position {'xyz'[axis] if p <= 3 else axis} = {X[(*where, axis)]:.4g} m at index "
                 f"{tuple(int(i) for i in where)} is {score[worst]:.0f} training standard deviations from "
                 f"the training mean {mean[axis]:.3f} m (at most {self.workspace_margin:g}): is it in "
                 f"metres, and for the rod this model was trained on?"
@@ -178,7 +180,8 @@ class Controller:
 
     def _plan(self, reference, noise, seed, options) -> np.ndarray:
         self._check_options(noise, options)
-        X, unbatched = as_real_array(reference, "reference", (None, None, 6), allow_unbatched=True)
+        dims = self.model.dims
+        X, unbatched = as_real_array(reference, "reference", (None, None, dims.state), allow_unbatched=True)
         B, T = X.shape[0], X.shape[1] - 1
         if B == 0:
             raise ValueError("reference must hold at least one trajectory (its batch axis is empty)")
@@ -195,10 +198,11 @@ class Controller:
         }
         if self.generative:
             generator = torch.Generator().manual_seed(self.seed if seed is None else seed)
-            z = torch.randn((B, T if noise == "fresh" else 1, 2), generator=generator)
-            options["noise"] = (torch.zeros_like(z) if noise == "zero" else z).expand(B, T, 2).reshape(B * T, 2)
+            z = torch.randn((B, T if noise == "fresh" else 1, dims.inputs), generator=generator)
+            zero = torch.zeros_like(z) if noise == "zero" else z
+            options["noise"] = zero.expand(B, T, dims.inputs).reshape(B * T, dims.inputs)
         with torch.inference_mode(), one_thread():
-            u = self.model.predict(windows, **extras, **options).numpy().astype(np.float64).reshape(B, T, 2)
+            u = self.model.predict(windows, **extras, **options).numpy().astype(np.float64).reshape(B, T, dims.inputs)
         return u[0] if unbatched else u
 
 
@@ -241,7 +245,7 @@ def load_controller(
 
 def plan_all(controller, references, u_limit: float = U_MAX, **plan_options):
     """Plan every reference and clip to ``u_limit``: the plans, and the same stacked
-    (R, T_max, 2) with shorter plans padded by holding their last u, ready for one batched run.
+    (R, T_max, m) with shorter plans padded by holding their last u, ready for one batched run.
     Saturation is part of what an evaluation measures, so it is not warned about here."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SaturationWarning)
@@ -274,19 +278,21 @@ def evaluate_many(controllers, references, sim: Simulator, u_limit: float = U_MA
     planned = [plan_all(c, references, u_limit, **plan_options)[0] for c in controllers]
     _, padded = pad_plans([u for plans in planned for u in plans])
     start = None if start_q is None else np.tile(np.asarray(start_q, float), (len(controllers), 1))
-    achieved = sim.rollout(padded, start_q=start).reshape(len(controllers), len(references), -1, 6)
+    achieved = sim.rollout(padded, start_q=start)
+    achieved = achieved.reshape(len(controllers), len(references), *achieved.shape[1:])
     rows, runs = [], {name: {} for name in names}
     for name, plans, outcomes in zip(names, planned, achieved):
         for r, u, X in zip(references, plans, outcomes):
             X = X[: r.n_steps + 1]
-            rows.append(score(name, r, u, X))
+            rows.append(score(name, r, u, X, sim.dt))
             runs[name][r.name] = dict(u=u, states=X)
     return pd.DataFrame(rows), runs
 
 
-def score(name: str, reference, u, achieved) -> dict:
-    """One row of Tables I and II: a plan ``u`` (T, 2) of ``name`` that ran to ``achieved``
-    (T+1, 6), scored on the reference's masked samples."""
+def score(name: str, reference, u, achieved, dt: float = DT) -> dict:
+    """One row of Tables I and II: a plan ``u`` (T, m) of ``name`` that ran to ``achieved``
+    (T+1, d) at sample period ``dt`` (s), scored on the reference's masked samples (phase lag in
+    the tip's y-z plane)."""
     masked = reference.mask
     row = dict(
         model=name,
@@ -294,10 +300,10 @@ def score(name: str, reference, u, achieved) -> dict:
         family=reference.family,
         rmse_mm=1e3 * tracking_rmse(achieved, reference.states, masked),
         phase_lag_s=phase_lag(
-            achieved[masked, 1:3], reference.states[masked, 1:3], DT, max_lag=fitting_lag(int(masked.sum()), DT)
+            achieved[masked, 1:3], reference.states[masked, 1:3], dt, max_lag=fitting_lag(int(masked.sum()), dt)
         ),
-        input_energy=input_energy(u, DT),
+        input_energy=input_energy(u, dt),
     )
     if reference.u_true is not None:
-        row["mae_u1"], row["mae_u2"] = actuation_mae(u, reference.u_true)
+        row.update({f"mae_u{i + 1}": error for i, error in enumerate(actuation_mae(u, reference.u_true))})
     return row

@@ -13,6 +13,7 @@ EXPORTS = {
         "split_episodes",
         "dataset_path",
         "load_dataset",
+        "DatasetOnDemand",
         "simulated_dataset",
         "gather_windows",
         "coverage",

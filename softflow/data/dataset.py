@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from softflow.data.excitation import polynomial_excitation
+from softflow.models.common import Dims
 from softflow.profiles import Profile
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import DT, SIM_ROBOT, U_MAX, Robot
@@ -30,8 +31,10 @@ BLOCK_EPISODES = 500  # episodes simulated and saved together: the unit of resum
 # ---------------------------------------------------------------------------- the dataset
 @dataclass(frozen=True)
 class Dataset:
-    """Whole episodes: u (E, T, 2), states (E, T+1, 6), an episode split, and the rod and
-    gravity that made them (RF-Physical's prior is that rod's statics)."""
+    """Whole episodes: u (E, T, m), states (E, T+1, d) (tip positions, then their velocities), an
+    episode split, the sample period ``dt`` (s), and the rod and gravity that made them
+    (RF-Physical's prior is that rod's statics; None for data no simulator made). Models take
+    their sizes from it (``dims``): m = 2 and d = 6 for the paper's rods."""
 
     u: np.ndarray
     states: np.ndarray
@@ -39,8 +42,20 @@ class Dataset:
     val: np.ndarray
     test: np.ndarray
     key: str = ""  # cache file stem: names the exact data a model was trained on
-    robot: Robot = SIM_ROBOT
-    gravity: str = "vertical"
+    robot: Robot | None = SIM_ROBOT
+    gravity: str | None = "vertical"
+    dt: float = DT
+
+    def __post_init__(self):
+        if self.u.ndim != 3 or self.states.ndim != 3 or self.states.shape[:2] != (len(self.u), self.u.shape[1] + 1):
+            raise ValueError(f"need u (E, T, m) and states (E, T+1, d); got {self.u.shape} and {self.states.shape}")
+        if not (np.isfinite(self.dt) and self.dt > 0):
+            raise ValueError(f"dt must be a positive sample period in s; got {self.dt!r}")
+
+    @property
+    def dims(self) -> Dims:
+        """What a model trained on these episodes reads and writes."""
+        return Dims.of(self.u, self.states)
 
     @property
     def n_transitions(self) -> int:
@@ -78,11 +93,11 @@ def _dataset_from(arrays: dict | None, key: str, robot: Robot, gravity: str, u_m
         data = Dataset(
             **{k: arrays[k] for k in ("u", "states", "train", "val", "test")}, key=key, robot=robot, gravity=gravity
         )
-    except (KeyError, TypeError):
+    except (KeyError, TypeError, ValueError):
         return None
     E, T, _ = data.u.shape
     consistent = (
-        data.states.shape == (E, T + 1, 6)
+        data.states.shape[-1] % 2 == 0
         and np.isfinite(data.states).all()
         and np.abs(data.u).max() <= u_max
         and len(data.train) + len(data.val) + len(data.test) == E
@@ -119,6 +134,24 @@ def load_dataset(
     )
 
 
+class DatasetOnDemand:
+    """The profile's dataset, made (or read from its cache) only when its episodes are first
+    used: its key, rod and gravity are known before, which is all a shipped model needs to be
+    found current, so scoring a shipped model never simulates 3000 episodes first."""
+
+    def __init__(self, profile: Profile, robot: Robot = SIM_ROBOT, gravity: str = "vertical", **options):
+        self.key, self.robot, self.gravity = dataset_path(profile, robot, gravity).stem, robot, gravity
+        self._make = lambda: load_dataset(profile, robot, gravity, **options)
+        self._dataset = None
+
+    def __getattr__(self, name):
+        if name.startswith("_"):
+            raise AttributeError(name)
+        if self._dataset is None:
+            self._dataset = self._make()
+        return getattr(self._dataset, name)
+
+
 def simulated_dataset(
     path: Path, excitation, simulator: Simulator, seed: int, *, u_max: float = U_MAX, progress: bool = True
 ) -> Dataset:
@@ -138,7 +171,7 @@ def simulated_dataset(
         stop = min(start + BLOCK_EPISODES, n_episodes)
         block_path = blocks_dir / f"{start:06d}.npz"
         done = (read_npz(block_path) or {}).get("states")
-        if done is None or done.shape != (stop - start, n_steps + 1, 6):
+        if done is None or done.shape[:2] != (stop - start, n_steps + 1):
             done = simulator.rollout(u[start:stop], progress=progress)
             write_npz(block_path, states=done)
         states.append(done)
@@ -149,7 +182,7 @@ def simulated_dataset(
 
 
 def gather_windows(states: np.ndarray, episodes, steps, context: int) -> np.ndarray:
-    """States x_{t-context+1} .. x_{t+1} for each (episode, t): (B, context+1, 6). Before the
+    """States x_{t-context+1} .. x_{t+1} for each (episode, t): (B, context+1, d). Before the
     first sample the window repeats x_0, the rest pose the robot held before it moved."""
     index = np.clip(np.asarray(steps)[:, None] + np.arange(-context + 1, 2), 0, None)
     return states[np.asarray(episodes)[:, None], index]
@@ -158,7 +191,7 @@ def gather_windows(states: np.ndarray, episodes, steps, context: int) -> np.ndar
 def coverage(
     training_states, query_states, held_out_states, quantile: float = 0.99, max_points: int = 200_000, seed: int = 0
 ) -> float:
-    """Fraction of query states (M, 6) inside the region the training states (N, 6) cover.
+    """Fraction of query states (M, d) inside the region the training states (N, d) cover.
 
     "Inside" means: nearer (in units of the training standard deviation per coordinate)
     to a training state than ``quantile`` of held-out training-distribution states
@@ -166,13 +199,14 @@ def coverage(
     from scipy.spatial import cKDTree
 
     rng = np.random.default_rng(seed)
-    train = np.asarray(training_states).reshape(-1, 6)
+    d = np.shape(training_states)[-1]
+    train = np.asarray(training_states).reshape(-1, d)
     if len(train) > max_points:
         train = train[rng.choice(len(train), max_points, replace=False)]
     scale = train.std(0)
     tree = cKDTree(train / scale)
-    held_out = np.asarray(held_out_states).reshape(-1, 6)
+    held_out = np.asarray(held_out_states).reshape(-1, d)
     held_out = held_out[rng.choice(len(held_out), min(len(held_out), 20_000), replace=False)]
     radius = np.quantile(tree.query(held_out / scale)[0], quantile)
-    distance = tree.query(np.asarray(query_states).reshape(-1, 6) / scale)[0]
+    distance = tree.query(np.asarray(query_states).reshape(-1, d) / scale)[0]
     return float(np.mean(distance <= radius))

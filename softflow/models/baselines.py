@@ -9,7 +9,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from .common import InverseModel, LeanModel, mlp
+from .common import PAPER_DIMS, Dims, InverseModel, LeanModel, mlp
 
 
 class _Regression(InverseModel):
@@ -25,9 +25,10 @@ class _Regression(InverseModel):
 class InverseMLP(_Regression):
     """u_t = MLP(x_t, x_{t+1})."""
 
-    def __init__(self, hidden: int = 256, layers: int = 3):
-        super().__init__()
-        self.net = mlp([12 + (2 if self.prior else 0)] + [hidden] * layers + [2])
+    def __init__(self, hidden: int = 256, layers: int = 3, *, dims: Dims = PAPER_DIMS):
+        super().__init__(dims)
+        m = dims.inputs
+        self.net = mlp([2 * dims.state + (m if self.prior else 0)] + [hidden] * layers + [m])
 
     def forward(self, window, prior=None):
         return self.net(self.condition(window, prior))
@@ -38,8 +39,8 @@ class PhysicalMLP(InverseMLP):
 
     prior = True
 
-    def __init__(self, hidden: int = 256, layers: int = 3):
-        super().__init__(hidden, layers)
+    def __init__(self, hidden: int = 256, layers: int = 3, *, dims: Dims = PAPER_DIMS):
+        super().__init__(hidden, layers, dims=dims)
         self._add_prior()
 
 
@@ -52,7 +53,7 @@ class LeanMLP(LeanModel):
         self.prior = model.prior
 
     def predict(self, window, prior=None):
-        """u (B, 2) for state windows (B, 2, 6) [x_t, x_{t+1}] (and the prior u_phys (B, 2))."""
+        """u (B, m) for state windows (B, 2, d) [x_t, x_{t+1}] (and the prior u_phys (B, m))."""
         h = self.features(window)
         if self.prior:
             prior = np.asarray(prior, dtype=np.float32)
@@ -67,11 +68,11 @@ class LeanMLP(LeanModel):
 class InverseLSTM(_Regression):
     """u_t from an LSTM run over the last ``context`` transitions of the reference."""
 
-    def __init__(self, context: int = 10, hidden: int = 128, layers: int = 2):
-        super().__init__()
+    def __init__(self, context: int = 10, hidden: int = 128, layers: int = 2, *, dims: Dims = PAPER_DIMS):
+        super().__init__(dims)
         self.context = context
-        self.lstm = nn.LSTM(12, hidden, num_layers=layers, batch_first=True)
-        self.head = nn.Linear(hidden, 2)
+        self.lstm = nn.LSTM(2 * dims.state, hidden, num_layers=layers, batch_first=True)
+        self.head = nn.Linear(hidden, dims.inputs)
 
     def forward(self, window, prior=None):
         out, _ = self.lstm(self.features(window))
@@ -81,14 +82,16 @@ class InverseLSTM(_Regression):
 class InverseTransformer(_Regression):
     """u_t from a Transformer encoder over the last ``context`` transitions (last token read out)."""
 
-    def __init__(self, context: int = 10, d_model: int = 64, heads: int = 4, layers: int = 2):
-        super().__init__()
+    def __init__(
+        self, context: int = 10, d_model: int = 64, heads: int = 4, layers: int = 2, *, dims: Dims = PAPER_DIMS
+    ):
+        super().__init__(dims)
         self.context = context
-        self.embed = nn.Linear(12, d_model)
+        self.embed = nn.Linear(2 * dims.state, d_model)
         self.position = nn.Parameter(torch.zeros(context, d_model))
         layer = nn.TransformerEncoderLayer(d_model, heads, 4 * d_model, dropout=0.0, batch_first=True)
         self.encoder = nn.TransformerEncoder(layer, layers, enable_nested_tensor=False)
-        self.head = nn.Linear(d_model, 2)
+        self.head = nn.Linear(d_model, dims.inputs)
 
     def forward(self, window, prior=None):
         tokens = self.embed(self.features(window)) + self.position

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import torch
 
+from softflow.models.common import PAPER_DIMS, Dims
 from softflow.models.registry import build_model, resolved_kwargs
 from softflow.profiles import TrainConfig
 from softflow.store import DATA_DIR, REPO, atomic_write
@@ -31,7 +32,8 @@ def load_checkpoint(path: Path) -> dict:
         checkpoint = torch.load(path, map_location="cpu", weights_only=True)  # never unpickle what a file hands us
     except pickle.UnpicklingError as error:
         raise ValueError(
-            f"checkpoint {path} holds more than weights and plain values (a pickled object); refusing to load it"
+            f"checkpoint {path} holds more than weights and plain values (a pickled object); "
+            "refusing to load it (delete it to retrain)"
         ) from error
     except Exception as error:
         raise ValueError(
@@ -43,7 +45,10 @@ def load_checkpoint(path: Path) -> dict:
 
 
 def model_from_checkpoint(checkpoint: dict, path: Path | str = "<memory>") -> torch.nn.Module:
-    model = build_model(checkpoint["name"], **checkpoint["model_kwargs"])
+    """The trained model a checkpoint holds, sized as its record says (the paper's sizes where a
+    record predates sizes)."""
+    dims = Dims(**checkpoint["dims"]) if "dims" in checkpoint else PAPER_DIMS
+    model = build_model(checkpoint["name"], dims, **checkpoint["model_kwargs"])
     try:
         model.load_state_dict(checkpoint["model"])
     except RuntimeError as error:

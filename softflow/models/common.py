@@ -4,6 +4,7 @@ and the interface the training loop and the controller rely on."""
 from __future__ import annotations
 
 from contextlib import contextmanager
+from dataclasses import dataclass
 
 import numpy as np
 import torch
@@ -20,6 +21,37 @@ def one_thread():
         yield
     finally:
         torch.set_num_threads(previous)
+
+
+@dataclass(frozen=True)
+class Dims:
+    """The sizes a model reads and writes, taken from its training data, never fixed in a model:
+    ``inputs`` actuation channels, and a state of ``position`` tip coordinates followed by their
+    velocities. The paper's rods: 2 inputs, a 3-D tip (a 6-D state)."""
+
+    inputs: int = 2
+    position: int = 3
+
+    def __post_init__(self):
+        for name in ("inputs", "position"):
+            value = getattr(self, name)
+            if not (isinstance(value, int) and value >= 1):
+                raise ValueError(f"{name} must be a positive integer; got {value!r}")
+
+    @property
+    def state(self) -> int:
+        return 2 * self.position
+
+    @classmethod
+    def of(cls, u, states) -> Dims:
+        """The sizes of episodes u (E, T, m) and states (E, T+1, d): d must be even (positions,
+        then their velocities)."""
+        if states.shape[-1] % 2:
+            raise ValueError(f"a state holds tip positions and their velocities (an even size); got {states.shape[-1]}")
+        return cls(inputs=int(u.shape[-1]), position=int(states.shape[-1]) // 2)
+
+
+PAPER_DIMS = Dims()
 
 
 class Normalizer(nn.Module):
@@ -44,8 +76,9 @@ class Normalizer(nn.Module):
 
 
 class InverseModel(nn.Module):
-    """Base of every model. Inputs are state windows (B, context+1, 6) in SI units:
-    x_{t-context+1} .. x_t, x_{t+1}; outputs are u_t (B, 2) in N.
+    """Base of every model. Inputs are state windows (B, context+1, d) in SI units:
+    x_{t-context+1} .. x_t, x_{t+1}; outputs are u_t (B, m); d and m are ``dims`` (6 and 2 for
+    the paper's rods).
 
     Each transition in the window becomes the feature [x_tau, x_{tau+1} - x_tau], each
     part normalised on its own: the same information as (x_tau, x_{tau+1}), but the small
@@ -59,14 +92,16 @@ class InverseModel(nn.Module):
     context = 1
     prior = False
 
-    def __init__(self):
+    def __init__(self, dims: Dims = PAPER_DIMS):
         super().__init__()
-        self.state_norm, self.delta_norm, self.action_norm = Normalizer(6), Normalizer(6), Normalizer(2)
+        self.dims = dims
+        d, m = dims.state, dims.inputs
+        self.state_norm, self.delta_norm, self.action_norm = Normalizer(d), Normalizer(d), Normalizer(m)
 
     def _add_prior(self):
         """Call from a subclass's __init__ to make it a prior (residual) model."""
         self.prior = True
-        self.prior_norm, self.residual_norm = Normalizer(2), Normalizer(2)
+        self.prior_norm, self.residual_norm = Normalizer(self.dims.inputs), Normalizer(self.dims.inputs)
 
     @property
     def needs_statics(self) -> bool:
@@ -74,15 +109,18 @@ class InverseModel(nn.Module):
         return self.prior
 
     def extras(self, states, statics=None) -> dict:
-        """Per-step inputs beyond the state window, computed from states (B, T+1, 6) as
+        """Per-step inputs beyond the state window, computed from states (B, T+1, d) as
         {name: (B, T, k) array}; passed to set_normalizer, compute_loss and predict: the
         static prior u_phys(p_{t+1}) of a prior model, the inverse of ``statics`` (the
         training rod's ``StaticTable``)."""
         if not self.prior:
             return {}
         if statics is None:
-            raise ValueError(f"{type(self).__name__} with a prior needs the static table of its rod")
-        return {"prior": statics.inverse(states[:, 1:, :3])}
+            raise ValueError(
+                f"{type(self).__name__} learns a residual around the static prior of a simulated rod: it needs "
+                "that rod's static table, and this data has none (train a model without a prior on it)"
+            )
+        return {"prior": statics.inverse(states[:, 1:, : self.dims.position])}
 
     def attach(self, **dependencies):
         """Receive the trained models the registry says this one requires (before training)."""
@@ -90,7 +128,7 @@ class InverseModel(nn.Module):
             raise ValueError(f"{type(self).__name__} takes no trained dependencies; got {sorted(dependencies)}")
 
     def set_normalizer(self, states: torch.Tensor, u: torch.Tensor, prior: torch.Tensor | None = None):
-        """Fit the normalisers on training episodes: states (E, T+1, 6), u (E, T, 2)."""
+        """Fit the normalisers on training episodes: states (E, T+1, d), u (E, T, m)."""
         self.state_norm.fit(states[:, :-1])
         self.delta_norm.fit(states[:, 1:] - states[:, :-1])
         self.action_norm.fit(u)
@@ -99,13 +137,13 @@ class InverseModel(nn.Module):
             self.residual_norm.fit(u - prior)
 
     def features(self, window: torch.Tensor) -> torch.Tensor:
-        """(B, context+1, 6) states -> (B, context, 12) normalised transition features."""
+        """(B, context+1, d) states -> (B, context, 2d) normalised transition features."""
         now, nxt = window[:, :-1], window[:, 1:]
         return torch.cat([self.state_norm.normalize(now), self.delta_norm.normalize(nxt - now)], -1)
 
     def condition(self, window, prior=None) -> torch.Tensor:
         """What a per-step model conditions on: the last transition's features, and the
-        normalised prior of a prior model, (B, 12 or 14)."""
+        normalised prior of a prior model, (B, 2d or 2d + m)."""
         c = self.features(window[:, -2:])[:, 0]
         return torch.cat([c, self.prior_norm.normalize(prior)], -1) if self.prior else c
 
@@ -146,7 +184,7 @@ class LeanModel:
         return (x - self.buffers[f"{name}.mean"]) / self.buffers[f"{name}.std"]
 
     def features(self, window):
-        """[x_t, x_{t+1} - x_t] of state windows (B, 2, 6), normalised: (B, 12) float32."""
+        """[x_t, x_{t+1} - x_t] of state windows (B, 2, d), normalised: (B, 2d) float32."""
         window = np.asarray(window, dtype=np.float32)
         x, x_next = window[:, -2], window[:, -1]
         return np.concatenate([self._normalize("state_norm", x), self._normalize("delta_norm", x_next - x)], -1)

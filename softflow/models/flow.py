@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from .common import InverseModel, LeanModel, mlp
+from .common import PAPER_DIMS, Dims, InverseModel, LeanModel, mlp
 from .forward import ForwardModel
 
 
@@ -30,8 +30,10 @@ class RectifiedFlow(InverseModel):
         tau_sampling: str = "logit-normal",
         prior: bool = False,
         consistency: float = 0.0,
+        *,
+        dims: Dims = PAPER_DIMS,
     ):
-        super().__init__()
+        super().__init__(dims)
         if tau_sampling not in ("uniform", "logit-normal"):
             raise ValueError(f"tau_sampling must be 'uniform' or 'logit-normal'; got {tau_sampling!r}")
         if not isinstance(prior, bool):
@@ -39,11 +41,12 @@ class RectifiedFlow(InverseModel):
         if not (isinstance(steps, int) and steps >= 1):
             raise ValueError(f"steps must be a positive integer; got {steps!r}")
         self.steps, self.tau_sampling, self.consistency = steps, tau_sampling, consistency
-        self.net = mlp([2 + 1 + 12 + (2 if prior else 0)] + [hidden] * layers + [2])
+        m = dims.inputs
+        self.net = mlp([m + 1 + 2 * dims.state + (m if prior else 0)] + [hidden] * layers + [m])
         if prior:
             self._add_prior()
         if consistency:
-            self.forward_model = ForwardModel().requires_grad_(False)
+            self.forward_model = ForwardModel(dims=dims).requires_grad_(False)
 
     # -- data-side hooks used by the training loop and the controller
     def attach(self, forward: ForwardModel | None = None):
@@ -56,6 +59,20 @@ class RectifiedFlow(InverseModel):
     # -- the flow
     def velocity(self, xi, tau, condition):
         return self.net(torch.cat([xi, tau[:, None], condition], -1))
+
+    def endpoint(self, xi_tau, tau, condition):
+        """The one-step estimate of where the flow ends from xi_tau at tau, xi_tau + (1 - tau) v
+        (normalised, (B, m)): what RF-FWD's consistency term judges."""
+        return xi_tau + (1 - tau[:, None]) * self.velocity(xi_tau, tau, condition)
+
+    def integrate(self, xi, condition, steps: int, start: float = 0.0):
+        """Euler integration of the flow from xi at tau = ``start`` to tau = 1 in ``steps`` equal
+        steps (normalised, (B, m)); ``predict`` starts it from noise at 0."""
+        span = 1.0 - start
+        for k in range(steps):
+            tau = torch.full((len(xi),), start + span * k / steps, device=xi.device)
+            xi = xi + span * self.velocity(xi, tau, condition) / steps
+        return xi
 
     def _sample_tau(self, n, device):
         if self.tau_sampling == "uniform":
@@ -71,23 +88,18 @@ class RectifiedFlow(InverseModel):
         v = self.velocity(xi_tau, tau, condition)
         loss = torch.mean((v - (xi - z)) ** 2)
         if self.consistency:
-            # one-step estimate of the endpoint from xi_tau along v (differentiable, cheap)
+            # the one-step estimate of the endpoint (``endpoint``, with the v already computed)
             u_hat = self.target_norm().unnormalize(xi_tau + (1 - tau[:, None]) * v)
             if self.prior:
                 u_hat = u_hat + prior
-            x, x_next = window[:, -2], window[:, -1]
-            predicted = self.forward_model.increment(x, u_hat)
-            loss = loss + self.consistency * torch.mean((predicted - self.delta_norm.normalize(x_next - x)) ** 2)
+            loss = loss + self.consistency * torch.mean(self.forward_model.residual(window, u_hat) ** 2)
         return loss
 
     def predict(self, window, prior=None, noise=None, steps: int | None = None):
-        """u (B, 2): Euler integration of the flow from ``noise`` (default: fresh N(0, I))."""
+        """u (B, m): Euler integration of the flow from ``noise`` (default: fresh N(0, I))."""
         condition = self.condition(window, prior)
-        xi = torch.randn(len(window), 2, device=window.device) if noise is None else noise
-        n = self.steps if steps is None else steps
-        for k in range(n):
-            tau = torch.full((len(xi),), k / n, device=xi.device)
-            xi = xi + self.velocity(xi, tau, condition) / n
+        xi = torch.randn(len(window), self.dims.inputs, device=window.device) if noise is None else noise
+        xi = self.integrate(xi, condition, self.steps if steps is None else steps)
         u = self.target_norm().unnormalize(xi)
         return u + prior if self.prior else u
 
@@ -103,11 +115,12 @@ class LeanFlow(LeanModel):
     def __init__(self, model: RectifiedFlow):
         super().__init__(model, model.net)
         first, _ = self.weights[0]
-        self.w_xi, self.w_tau, self.w_condition = first[:2], first[2], first[3:]
+        m = model.dims.inputs
+        self.w_xi, self.w_tau, self.w_condition = first[:m], first[m], first[m + 1 :]
         self.prior, self.steps = model.prior, model.steps
 
     def predict(self, window: np.ndarray, noise: np.ndarray, prior: np.ndarray | None = None, steps: int | None = None):
-        """u (B, 2) for state windows (B, 2, 6) [x_t, x_{t+1}] and noise z (B, 2)."""
+        """u (B, m) for state windows (B, 2, d) [x_t, x_{t+1}] and noise z (B, m)."""
         condition = [self.features(window)]
         if self.prior:
             prior = np.asarray(prior, dtype=np.float32)

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from torch import nn
 
 from .baselines import InverseLSTM, InverseMLP, InverseTransformer, PhysicalMLP
+from .common import PAPER_DIMS, Dims
 from .flow import RectifiedFlow
 from .forward import ForwardModel
 
@@ -45,15 +46,19 @@ def model_spec(name: str) -> ModelSpec:
 
 def resolved_kwargs(name: str, **overrides) -> dict:
     """Every constructor argument of model ``name``: its class defaults, then the registry's,
-    then ``overrides``. A checkpoint records these, so changing any default makes it stale."""
+    then ``overrides``. A checkpoint records these, so changing any default makes it stale. The
+    sizes (``dims``) are not among them: they come from the data, which the record names."""
     spec = model_spec(name)
+    if "dims" in overrides:
+        raise ValueError("the sizes are not a model argument: pass dims= to build_model")
     try:
         arguments = inspect.signature(spec.cls).bind(**{**spec.kwargs, **overrides})
     except TypeError as error:
         raise ValueError(f"bad arguments for model {name!r}: {error}") from error
     arguments.apply_defaults()
-    return dict(arguments.arguments)
+    return {key: value for key, value in arguments.arguments.items() if key != "dims"}
 
 
-def build_model(name: str, **overrides) -> nn.Module:
-    return model_spec(name).cls(**resolved_kwargs(name, **overrides))
+def build_model(name: str, dims: Dims = PAPER_DIMS, **overrides) -> nn.Module:
+    """Model ``name`` with the registry's arguments and ``overrides``, sized by ``dims``."""
+    return model_spec(name).cls(**resolved_kwargs(name, **overrides), dims=dims)

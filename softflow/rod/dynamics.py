@@ -28,7 +28,7 @@ from tqdm import tqdm
 from softflow.checks import as_real_array, check_choice
 from softflow.rod import statics
 from softflow.rod.kinematics import RodKinematics, rowwise
-from softflow.rod.robots import Robot
+from softflow.rod.robots import DT, U_MAX, Robot
 
 SIMULATOR_VERSION = 1  # bump when a number the simulator produces changes (it keys every cache)
 GRAVITY = 9.81  # m/s^2
@@ -68,7 +68,7 @@ class Simulator:
         order: int = 3,
         n_segments: int = 32,
         substeps: int = 4,
-        dt: float = 0.01,
+        dt: float = DT,
         damping: bool = True,
         threads: int | None = None,
         chunk_size: int = 256,
@@ -295,7 +295,7 @@ class Simulator:
             raise ValueError("p must hold at least one point (its batch axis is empty)")
         return statics.inverse_static(self, p, tol, max_iter, max_residual)
 
-    def static_lift(self, yz, u_max: float = 4.0):
+    def static_lift(self, yz, u_max: float = U_MAX):
         """The equilibrium whose tip has lateral position yz (B, 2): tip p (B, 3), actuation
         u (B, 2) and d p / d(y, z) (B, 3, 2), for lifting y-z paths to 3D."""
         yz, _ = as_real_array(yz, "yz", (None, 2))

@@ -13,7 +13,7 @@ from scipy.optimize import least_squares
 from tqdm import tqdm
 
 from softflow.checks import as_real_array
-from softflow.rod.robots import Robot
+from softflow.rod.robots import U_MAX, Robot
 from softflow.store import DATA_DIR, cache_file, cached_arrays
 
 STATICS_VERSION = 1  # bump when a number the table or the solvers produce changes
@@ -141,7 +141,7 @@ def _nearest_equilibrium(sim, p, u0) -> float:
     return float(np.linalg.norm(fit.fun))
 
 
-def static_lift(sim, yz, u_max: float = 4.0):
+def static_lift(sim, yz, u_max: float = U_MAX):
     """The equilibrium whose tip has lateral position yz (B, 2): tip p (B, 3), actuation
     u (B, 2) and d p / d(y, z) (B, 3, 2), for lifting y-z paths to 3D.
 

@@ -6,7 +6,7 @@ from softflow.lazy import facade
 
 EXPORTS = {
     "registry": ["STUDIES"],
-    "study": ["FLOOR", "Study", "floor_rows", "held_out_plan", "unnamed"],
+    "study": ["FLOOR", "Study", "trained", "floor_rows", "held_out_plan", "unnamed"],
 }
 SUBMODULES = [
     "sweep",

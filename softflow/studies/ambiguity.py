@@ -28,7 +28,7 @@ from softflow.profiles import get_profile
 from softflow.rod.dynamics import Simulator
 from softflow.store import cache_file, cached_arrays
 from softflow.studies.data_size import DATA_SIZE
-from softflow.studies.study import held_out_plan, unnamed
+from softflow.studies.study import held_out_plan, trained, unnamed
 from softflow.studies.table1 import table1_references
 
 
@@ -109,7 +109,7 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
     loop on Table I's references; one row per reference and plan (z = 0; flows: the mean of draws)."""
     grid, variant = AMBIGUITY[profile_name], VARIANTS[cell["variant"]]
     dataset = variant_dataset(variant, grid["episodes"])
-    budget = replace(get_profile(profile_name), train=grid["train"], per_step_train=grid["train"])
+    budget = _budget(profile_name)
     model, _ = training.ensure_trained(
         cell["model"],
         budget,
@@ -171,3 +171,13 @@ def _per_step(controller: Controller, dataset: data.Dataset, draws: int) -> dict
             spread_error_spearman=float(scipy_stats.spearmanr(spread.ravel(), error.ravel())[0]),
         )
     return row
+
+
+def _budget(profile_name: str):
+    """The profile with the study's fixed budget for every model (RF-FWD's surrogate too)."""
+    train = AMBIGUITY[profile_name]["train"]
+    return replace(get_profile(profile_name), train=train, per_step_train=train)
+
+
+def models(cell: dict, profile_name: str) -> dict:
+    return trained(cell["model"], _budget(profile_name), seed=cell["seed"])

@@ -17,6 +17,7 @@ from softflow.profiles import get_profile
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import HW_ROBOT
 from softflow.store import cache_file, cached_arrays
+from softflow.studies.study import trained
 
 LOOP_MODES = {  # mode -> hardware.run_twin options (repetitions: the profile's)
     "open": dict(loop="open"),
@@ -85,7 +86,7 @@ def twin_setup(cell: dict, profile_name: str, device: str, workdir: Path):
     of the cell's loop mode, and the identified terms (empty unless calibrated)."""
     profile, gravity = get_profile(profile_name), cell["gravity"]
     sim = Simulator(HW_ROBOT, gravity)
-    dataset = data.load_dataset(profile, HW_ROBOT, gravity, progress=False)
+    dataset = data.DatasetOnDemand(profile, HW_ROBOT, gravity, progress=False)  # made only to train
     model, _ = training.ensure_trained(cell["model"], profile, dataset, HW_ROBOT, gravity, device=device)
     options, gap = dict(LOOP_MODES[cell["mode"]]), _gap(cell["gap"])
     if "repetitions" in options:
@@ -125,3 +126,7 @@ def _identified_twin(sim: Simulator, gap: hardware.RealityGap, seconds: float, w
     )
     fitted = hardware.RealityGap(**{term: float(cached[term]) for term in identification.FITTED})
     return identification.Identified(fitted, float(cached["rmse_mm"]), int(cached["evaluations"]))
+
+
+def models(cell: dict, profile_name: str) -> dict:
+    return trained(cell["model"], get_profile(profile_name))

@@ -10,7 +10,7 @@ from softflow.control.planning import Controller, evaluate
 from softflow.profiles import TrainConfig, get_profile
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import SIM_ROBOT
-from softflow.studies.study import held_out_plan, unnamed
+from softflow.studies.study import held_out_plan, trained, unnamed
 from softflow.studies.table1 import table1_references
 
 DATA_SIZE = {
@@ -54,3 +54,12 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
     return [
         unnamed(row, u_rmse_test=per_step, best_val=float(checkpoint["best_val"])) for row in results.to_dict("records")
     ]
+
+
+def _budget(profile_name: str):
+    """The profile with the study's fixed budget for every model."""
+    return replace(get_profile(profile_name), train=DATA_SIZE[profile_name]["train"], per_step_train=None)
+
+
+def models(cell: dict, profile_name: str) -> dict:
+    return trained(cell["model"], _budget(profile_name), seed=cell["seed"])

@@ -12,7 +12,7 @@ from softflow.control.planning import Controller, evaluate
 from softflow.profiles import get_profile
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import SIM_ROBOT
-from softflow.studies.study import held_out_plan, unnamed
+from softflow.studies.study import held_out_plan, trained, unnamed
 from softflow.studies.table1 import table1_references
 
 # Fixed before any ran (issue 15 section 4): lambda in {0, 0.03, 0.1, 0.3, 1} x seeds 0-2 at
@@ -41,8 +41,7 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
     endpoint estimate against a short Euler rollout (``_consistency_diagnostics``)."""
     profile, sim, weight = get_profile(profile_name), Simulator(SIM_ROBOT), cell["consistency"]
     dataset = data.load_dataset(profile, progress=False)
-    name = "rf" if weight == 0 else "rf-fwd"  # lambda = 0 is RF: no surrogate to train or attach
-    kwargs = None if weight in (0.0, 1.0) else dict(consistency=weight)
+    name, kwargs = _model(weight)
     shared = workdir.parent / "table1" / "models" / profile_name
     model, checkpoint = training.ensure_trained(
         name, profile, dataset, seed=cell["seed"], model_kwargs=kwargs, root=shared, device=device
@@ -70,22 +69,22 @@ def _consistency_diagnostics(model, forward, dataset: data.Dataset, points: int)
     out = {}
     with torch.inference_mode():
         predicted = forward.predict_next(x, u)
-        out["forward_step_mm"] = float(1e3 * torch.sqrt(torch.mean((predicted - x_next)[:, :3] ** 2)))
+        out["forward_step_mm"] = float(
+            1e3 * torch.sqrt(torch.mean((predicted - x_next)[:, : forward.dims.position] ** 2))
+        )
         condition, norm = model.condition(window), model.target_norm()
-        xi, z = norm.normalize(u), torch.as_tensor(rng.standard_normal((len(u), 2)), dtype=torch.float32)
-        target = forward.delta_norm.normalize(x_next - x)
+        xi = norm.normalize(u)
+        z = torch.as_tensor(rng.standard_normal((len(u), u.shape[-1])), dtype=torch.float32)
         for tau_value in DIAGNOSTIC_TAUS:
             tau = torch.full((len(u),), tau_value)
             xi_tau = (1 - tau_value) * z + tau_value * xi
-            one_step = xi_tau + (1 - tau_value) * model.velocity(xi_tau, tau, condition)
-            rolled, h = xi_tau, (1 - tau_value) / DIAGNOSTIC_EULER
-            for k in range(DIAGNOSTIC_EULER):
-                rolled = rolled + h * model.velocity(rolled, tau + k * h, condition)
+            one_step = model.endpoint(xi_tau, tau, condition)
+            rolled = model.integrate(xi_tau, condition, DIAGNOSTIC_EULER, start=tau_value)
             for label, estimate in (("one_step", one_step), ("euler", rolled)):
                 u_hat = norm.unnormalize(estimate)
                 out[f"{label}_u_error_tau{tau_value:g}"] = float(torch.sqrt(torch.mean((u_hat - u) ** 2)))
                 out[f"{label}_residual_tau{tau_value:g}"] = float(
-                    torch.sqrt(torch.mean((forward.increment(x, u_hat) - target) ** 2))
+                    torch.sqrt(torch.mean(forward.residual(window, u_hat) ** 2))
                 )
     return out
 
@@ -104,3 +103,15 @@ def _diagnostic_transitions(dataset: data.Dataset, points: int, rng: np.random.G
     held_out = [a.reshape(-1, a.shape[-1]) for a in dataset.transitions(dataset.test)]
     pick = rng.choice(len(held_out[0]), min(points, len(held_out[0])), replace=False)
     return tuple(torch.as_tensor(a[pick], dtype=torch.float32) for a in held_out)
+
+
+def _model(weight: float) -> tuple[str, dict | None]:
+    """The model of a consistency weight and its arguments beyond the registry's: lambda = 0 is RF
+    (no surrogate to attach), lambda = 1 the registry's RF-FWD."""
+    return ("rf" if weight == 0 else "rf-fwd"), (None if weight in (0.0, 1.0) else dict(consistency=weight))
+
+
+def models(cell: dict, profile_name: str) -> dict:
+    name, kwargs = _model(cell["consistency"])
+    profile = get_profile(profile_name)
+    return {**trained(name, profile, kwargs, cell["seed"]), **trained("forward", profile, seed=cell["seed"])}

@@ -32,7 +32,7 @@ from softflow.data.references import (
 from softflow.profiles import get_profile
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import DT, SIM_ROBOT
-from softflow.studies.study import FLOOR, floor_rows, unnamed
+from softflow.studies.study import FLOOR, floor_rows, trained, unnamed
 from softflow.studies.table1 import TABLE1
 
 APPROACHES = ("excluded", "scored", "on-path")
@@ -153,3 +153,7 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
         options = dict(noise=protocol.noise) if controller.generative else {}
         rows = evaluate(controller, references, sim, start_q=start_q, **options)[0].to_dict("records")
     return [unnamed(row, coverage=covered[row["reference"]], speed=protocol.speed) for row in rows]
+
+
+def models(cell: dict, profile_name: str) -> dict:
+    return {} if cell["model"] == FLOOR else trained(cell["model"], get_profile(profile_name))

@@ -32,12 +32,12 @@ from softflow.studies import ambiguity, closed_loop, data_size, fwd_lambda, prot
 from softflow.studies.study import Study
 
 STUDIES = {
-    "smoke": Study(smoke.cells, smoke.run),
-    "table1": Study(table1.cells, table1.run),
-    "protocol": Study(protocol.cells, protocol.run),
-    "data_size": Study(data_size.cells, data_size.run),
-    "closed_loop": Study(closed_loop.cells, closed_loop.run, version=2),
-    "twin_burst": Study(twin_burst.cells, twin_burst.run),
-    "ambiguity": Study(ambiguity.cells, ambiguity.run),
-    "fwd_lambda": Study(fwd_lambda.cells, fwd_lambda.run),
+    "smoke": Study(smoke.cells, smoke.run, smoke.models),
+    "table1": Study(table1.cells, table1.run, table1.models),
+    "protocol": Study(protocol.cells, protocol.run, protocol.models),
+    "data_size": Study(data_size.cells, data_size.run, data_size.models),
+    "closed_loop": Study(closed_loop.cells, closed_loop.run, closed_loop.models, version=2),
+    "twin_burst": Study(twin_burst.cells, twin_burst.run, twin_burst.models),
+    "ambiguity": Study(ambiguity.cells, ambiguity.run, ambiguity.models),
+    "fwd_lambda": Study(fwd_lambda.cells, fwd_lambda.run, fwd_lambda.models),
 }

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -9,6 +10,7 @@ import torch
 
 from softflow import data, training
 from softflow.profiles import Profile, TrainConfig
+from softflow.studies.study import trained
 
 SMOKE_DATA = Profile("smoke", n_episodes=20, episode_seconds=1.0)  # 16 / 2 / 2 episodes: train / val / test
 
@@ -21,9 +23,7 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
     """A tiny MLP on a tiny dataset, scored per step on the test episodes: seconds per cell,
     the same for every profile (it tries the machinery, not the science)."""
     dataset = data.load_dataset(SMOKE_DATA, data_dir=workdir / "data", progress=False)  # shared; safe to race
-    config = TrainConfig(
-        epochs=2, steps_per_epoch=20, batch_size=64, warmup_steps=5, val_samples=200, seed=cell["seed"]
-    )
+    config = _config(cell["seed"])
     model, checkpoint = training.train(
         cell["model"],
         dataset,
@@ -42,4 +42,14 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
         best_val=float(checkpoint["best_val"]),
         epochs_run=int(checkpoint["epochs_run"]),
         u_rmse=float(np.sqrt(np.mean((u_hat - dataset.u[episodes, steps]) ** 2))),
+    )
+
+
+def _config(seed: int) -> TrainConfig:
+    return TrainConfig(epochs=2, steps_per_epoch=20, batch_size=64, warmup_steps=5, val_samples=200, seed=seed)
+
+
+def models(cell: dict, profile_name: str) -> dict:
+    return trained(
+        cell["model"], replace(SMOKE_DATA, train=_config(cell["seed"])), {"hidden": cell["hidden"]}, cell["seed"]
     )

@@ -7,7 +7,7 @@ from __future__ import annotations
 import copy
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +15,8 @@ import numpy as np
 from softflow import data
 from softflow.control import floor
 from softflow.control.planning import Controller, SaturationWarning, score
+from softflow.models.registry import model_spec, resolved_kwargs
+from softflow.profiles import Profile
 from softflow.rod.dynamics import Simulator
 
 FLOOR = "ilc-floor"  # the model name of the ILC floor's rows in the studies
@@ -29,13 +31,30 @@ class Study:
     or a list of them (one row each, e.g. per reference), that depends on nothing but its
     arguments (its rows are cached by them). ``workdir`` is the study's folder, for files
     cells share (datasets) or own (name those by ``key``).
+    ``models(cell, profile_name)``: what the cell's rows depend on of the models it trains or
+    loads (``trained``: their resolved arguments and budgets), part of each row's key, so that a
+    changed default or budget recomputes the rows instead of serving stale ones.
     ``version``: bump it when a change alters the numbers run_cell returns; every cached row
     of the study is then recomputed.
     """
 
     cells: Callable[[str], list[dict]]
     run_cell: Callable[[dict, str, str, Path, str], dict | list[dict]]
+    models: Callable[[dict, str], dict] = lambda cell, profile_name: {}
     version: int = 1
+
+
+def trained(name: str, profile: Profile, model_kwargs: dict | None = None, seed: int = 0) -> dict:
+    """{model: its resolved arguments and training budget} for model ``name`` trained with the
+    profile's budget and ``seed``, and for the models it requires (RF-FWD's surrogate)."""
+    names = (name, *model_spec(name).requires)
+    return {
+        n: dict(
+            kwargs=resolved_kwargs(n, **((model_kwargs or {}) if n == name else {})),
+            train=asdict(replace(profile.train_config(n), seed=seed)),
+        )
+        for n in names
+    }
 
 
 def floor_rows(sim: Simulator, references, iterations: int, start_q=None):

@@ -16,7 +16,7 @@ from softflow.data.references import (
 from softflow.profiles import get_profile
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import SIM_ROBOT
-from softflow.studies.study import FLOOR, floor_rows, unnamed
+from softflow.studies.study import FLOOR, floor_rows, trained, unnamed
 
 TABLE1 = {  # per profile: the grid, and the references it is scored on
     "ci": dict(models=("mlp", "rf"), seeds=(0, 1), shapes=("circle", "char_S"), n_random=4, ilc_iterations=8),
@@ -66,7 +66,7 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
     if cell["model"] == FLOOR:
         rows, trials = floor_rows(sim, references, TABLE1[profile_name]["ilc_iterations"])
         return [unnamed(row, ilc_best_trial=int(t)) for row, t in zip(rows, trials)]
-    dataset = data.load_dataset(profile, progress=False)
+    dataset = data.DatasetOnDemand(profile, progress=False)  # simulated only if a model must be trained
     model, checkpoint = training.ensure_trained(
         cell["model"], profile, dataset, seed=cell["seed"], root=workdir / "models" / profile_name, device=device
     )
@@ -77,3 +77,7 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
         train_minutes=float(checkpoint["wall_seconds"]) / 60,
     )
     return [unnamed(row, **trained) for row in results.to_dict("records")]
+
+
+def models(cell: dict, profile_name: str) -> dict:
+    return {} if cell["model"] == FLOOR else trained(cell["model"], get_profile(profile_name), seed=cell["seed"])

@@ -8,8 +8,10 @@ from softflow import hardware
 from softflow.data.references import (
     hardware_burst_reference,
 )
+from softflow.profiles import get_profile
 from softflow.studies import stress
 from softflow.studies.closed_loop import CAMERA_LATENCY, LOOP_GRID, learning_options, twin_setup
+from softflow.studies.study import trained
 
 # Fixed before any ran: the burst circle continued to a 0.2 s period (paper profile; the ci
 # profile a short, steep one) under TYPICAL_GAP with 33 ms latency, in the open loop, the
@@ -43,3 +45,7 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
         dict(row, reference=reference.name, **{f"whole_{k}": v for k, v in counts.items()})
         for row in breakdown.drop(columns="model").to_dict("records")
     ]
+
+
+def models(cell: dict, profile_name: str) -> dict:
+    return trained(cell["model"], get_profile(profile_name))

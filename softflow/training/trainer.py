@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import copy
 import time
-from dataclasses import replace
+from dataclasses import asdict, replace
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +29,7 @@ from softflow.models.checkpoints import (
     model_from_checkpoint,
     save_checkpoint,
 )
-from softflow.models.common import one_thread
+from softflow.models.common import Dims, one_thread
 from softflow.models.registry import build_model, model_spec
 from softflow.profiles import Profile, TrainConfig
 from softflow.rod.dynamics import Simulator
@@ -167,8 +167,10 @@ def _train(
             return model_from_checkpoint(finished, path), finished
 
     torch.manual_seed(config.seed)
-    model = build_model(name, **identity["model_kwargs"])
-    statics = Simulator(dataset.robot, dataset.gravity).static_table() if model.needs_statics else None
+    dims = Dims.of(dataset.u, dataset.states)
+    model = build_model(name, dims, **identity["model_kwargs"])
+    simulated = dataset.robot is not None  # recorded or synthetic data has no statics
+    statics = Simulator(dataset.robot, dataset.gravity).static_table() if model.needs_statics and simulated else None
     extras = model.extras(dataset.states, statics)
     as_tensor = lambda a: torch.as_tensor(a[dataset.train], dtype=torch.float32)  # noqa: E731
     model.set_normalizer(
@@ -242,6 +244,7 @@ def _train(
 
     final = dict(
         identity,
+        dims=asdict(dims),
         model=state["best_model"],
         best_val=state["best_val"],
         history=state["history"],
