@@ -1,10 +1,18 @@
 """Tables from result CSVs: the paper's numbers beside ours, Markdown, and clear errors."""
 
+import json
+
+import numpy as np
 import pandas as pd
 import pytest
 
 from softflow import profiles, report
+from softflow.report import results_page
+from softflow.rod.robots import HW_ROBOT
 from softflow.studies.study import FLOOR
+from softflow.studies.table1 import TABLE1
+
+ILC_TRIALS = 8  # the test profile's ILC budget: its last trial is trial 8
 
 
 @pytest.fixture
@@ -12,7 +20,14 @@ def profile(tmp_path, monkeypatch):
     monkeypatch.setattr(profiles, "REPO", tmp_path)
     p = profiles.Profile("report-test", n_episodes=1)
     p.output_dir.mkdir(parents=True)
+    monkeypatch.setitem(TABLE1, p.name, {**TABLE1["ci"], "ilc_iterations": ILC_TRIALS})
     return p
+
+
+def write_sweep(profile, study, rows: pd.DataFrame):
+    """A study's rows where the paper profile ships them (figures/sweeps/<study>-paper.csv)."""
+    (profile.output_dir / "sweeps").mkdir(exist_ok=True)
+    rows.to_csv(profile.output_dir / "sweeps" / f"{study}-{profile.name}.csv", index=False)
 
 
 def write_results(profile):
@@ -54,6 +69,8 @@ def test_a_missing_result_names_the_notebook_that_writes_it(profile):
     write_results(profile)
     with pytest.raises(ValueError, match="06_hardware_replay.ipynb"):
         report.table3(profile)
+    with pytest.raises(ValueError, match="study 'table1' .* notebooks/08_honest_table1.ipynb"):
+        report.read_sweep(profile, "table1")
 
 
 def test_the_report_does_not_import_torch():
@@ -67,19 +84,27 @@ def test_the_report_does_not_import_torch():
 
 
 def study_rows():
-    """Three seeds on two references per family; RF-FWD exactly 1 mm below the MLP everywhere."""
+    """Three seeds on two references per family. Shapes: RF-FWD exactly 1 mm below the MLP on
+    each. Random (every model 10 mm higher): RF-FWD 1 and 2 mm below the MLP, which the bootstrap
+    ranks and the t-interval on two references does not. The floor's best ILC trial is its last
+    on three of its four references."""
     base = dict(mlp=5.0, lstm=6.0, transformer=7.0, rf=5.5, **{"rf-physical": 6.5, "rf-fwd": 4.0})
     rows = [
-        dict(model=model, seed=seed, reference=f"{family}{r}", family=family, rmse_mm=value + r + 0.1 * seed)
+        dict(
+            model=model,
+            seed=seed,
+            reference=f"{family}{r}",
+            family=family,
+            rmse_mm=value + r + 0.1 * seed + (10.0 - (r if model == "rf-fwd" else 0.0) if family == "random" else 0.0),
+        )
         for model, value in base.items()
         for seed in range(3)
         for family in ("shape", "random")
         for r in range(2)
     ]
     rows += [
-        dict(model=FLOOR, seed=0, reference=f"{family}{r}", family=family, rmse_mm=0.1)
-        for family in ("shape", "random")
-        for r in range(2)
+        dict(model=FLOOR, seed=0, reference=f"{family}{r}", family=family, rmse_mm=0.1, ilc_best_trial=trial)
+        for (family, r), trial in zip([("shape", 0), ("shape", 1), ("random", 0), ("random", 1)], (8, 8, 2, 8))
     ]
     return pd.DataFrame(rows)
 
@@ -94,19 +119,26 @@ def test_study_tables_carry_intervals_the_floor_and_a_verdict():
     assert verdict.loc["shape", ["best_rf", "best_baseline"]].tolist() == ["rf-fwd", "mlp"]
     assert verdict.loc["shape", "difference_mm"] == pytest.approx(-1.0)
     assert verdict.loc["shape", "high"] < 0 and verdict.loc["shape", "verdict"] == "RF-FWD lower"
+    assert verdict.loc["shape", ["t_low", "t_high"]].tolist() == pytest.approx([-1.0, -1.0])  # the same on both
+    # random: the bootstrap excludes 0, the t-interval on differences -1, -2 (t 12.71, 1 dof) does not
+    assert verdict.loc["random", "best_rf"] == "rf-fwd" and verdict.loc["random", "high"] < 0
+    assert verdict.loc["random", ["t_low", "t_high"]].tolist() == pytest.approx([-1.5 - 6.353, -1.5 + 6.353], abs=1e-3)
+    assert verdict.loc["random", "verdict"] == "no ranking (an interval contains 0)"
     conditions = rows.assign(condition="table1", coverage=1.0)
     grid = report.protocol_table(conditions)
     assert list(grid.columns) == [*report.MODELS, FLOOR, "coverage"]
     assert grid.loc["table1", "lstm"] == pytest.approx(6.6)
 
 
-def test_regime_map_pairs_each_flow_with_the_mlp_per_variant():
+def ambiguity_rows(noise=0.1):
+    """Two variants, MLP and RF, three seeds on two shapes and one random reference: RF 2 mm
+    below the MLP on every reference of the folded variant, equal in the paper's."""
     rows = []
     for variant, gain in (("paper", 0.0), ("folded", -2.0)):
         for model in ("mlp", "rf"):
             for seed in (0, 1, 2):
                 for k, (reference, family) in enumerate((("circle", "shape"), ("star", "shape"), ("Rand1", "random"))):
-                    rmse = 5.0 + k + 0.1 * seed + (gain if model == "rf" else 0.0)
+                    rmse = 5.0 + k + noise * seed + (gain if model == "rf" else 0.0)
                     rows.append(
                         dict(
                             variant=variant,
@@ -121,23 +153,32 @@ def test_regime_map_pairs_each_flow_with_the_mlp_per_variant():
                             conditional_spread_floor=0.1,
                         )
                     )
-    table = report.regime_map(pd.DataFrame(rows))
+    return pd.DataFrame(rows)
+
+
+def test_regime_map_pairs_each_flow_with_the_mlp_per_variant():
+    table = report.regime_map(ambiguity_rows())
     assert table.loc[("folded", "rf"), "shape_mm"] == pytest.approx(-2.0)
     assert table.loc[("folded", "rf"), "shape_verdict"] == "RF lower"
     assert table.loc[("paper", "rf"), "random_mm"] == pytest.approx(0.0, abs=1e-12)
     assert table.loc[("paper", "rf"), "random_verdict"] == "no ranking"
     assert table.loc[("paper", "rf"), "step_N"] == pytest.approx(0.0, abs=1e-12)
+    # one random reference: the bootstrap over seeds excludes 0, a t-interval needs two references
+    folded = table.loc[("folded", "rf")]
+    assert folded.random_high < 0 and np.isnan(folded.random_t_low) and folded.random_verdict == "no ranking"
+    assert folded.step_verdict == "no ranking"  # one number per model: no references to pair over
 
 
-def test_closed_loop_section_counts_references_worse_than_open_loop(profile):
-    out = profile.output_dir
+def write_closed_loop(out):
+    """Notebook 10's tables: the closed loop worse than the open one on one reference per
+    gravity, the calibrated learning never."""
     pd.DataFrame(
         {
-            "gravity": ["vertical"] * 3,
-            "reference": ["star", "circle", "mean"],
-            "open": [5.0, 3.0, 4.0],
-            "closed": [6.0, 2.0, 4.0],
-            "closed-ilc": [1.0, 1.0, 1.0],
+            "gravity": ["vertical"] * 3 + ["horizontal"] * 3,
+            "reference": ["star", "circle", "mean"] * 2,
+            "open": [5.0, 3.0, 4.0, 10.0, 6.0, 8.0],
+            "closed": [6.0, 2.0, 4.0, 8.0, 7.0, 7.5],
+            "closed-ilc-calibrated": [1.0, 1.0, 1.0, 2.0, 2.0, 2.0],
         }
     ).to_csv(out / "10_table3_extended.csv", index=False)
     pd.DataFrame({"latency": [0.0], "dropped": [0.0], "vertical": [4.0]}).to_csv(out / "10_latency.csv", index=False)
@@ -148,14 +189,21 @@ def test_closed_loop_section_counts_references_worse_than_open_loop(profile):
         out / "10_burst_breaks.csv", index=False
     )
     pd.DataFrame({"truth": [0.1]}, index=["density"]).to_csv(out / "10_identified.csv")
+
+
+def test_closed_loop_section_counts_references_worse_than_open_loop(profile):
+    write_closed_loop(profile.output_dir)
     text = "\n".join(report.closed_loop_section(profile))
     assert "| vertical | 1 | 0 |" in text  # closed worse on the star only, learning never
+    assert "| horizontal | 1 | 0 |" in text  # on the circle
     assert "| typical | 4.00 |" in text
 
 
-def test_size_effects_separate_the_prior_from_being_generative():
-    offsets = {"mlp": 0.0, "mlp-physical": -1.0, "rf": -0.5, "rf-physical": -1.5}  # prior -1, generative -0.5
-    rows = pd.DataFrame(
+def data_size_rows(noise=0.1):
+    """Two sizes, the four models of data_size, three seeds on three references per family: the
+    prior 1 mm lower, being generative 0.5 mm lower, on every reference."""
+    offsets = {"mlp": 0.0, "mlp-physical": -1.0, "rf": -0.5, "rf-physical": -1.5}
+    return pd.DataFrame(
         [
             dict(
                 episodes=episodes,
@@ -163,7 +211,7 @@ def test_size_effects_separate_the_prior_from_being_generative():
                 seed=seed,
                 reference=f"{family}{r}",
                 family=family,
-                rmse_mm=5.0 + r + 0.1 * seed + offset,
+                rmse_mm=5.0 + r + noise * seed + offset,
             )
             for episodes in (100, 300)
             for model, offset in offsets.items()
@@ -172,102 +220,81 @@ def test_size_effects_separate_the_prior_from_being_generative():
             for r in range(3)
         ]
     )
-    table = report.size_effects(rows)
+
+
+def test_size_effects_separate_the_prior_from_being_generative():
+    table = report.size_effects(data_size_rows())
     assert table.loc[(100, "prior, flow", "shape"), "difference_mm"] == pytest.approx(-1.0)
     assert table.loc[(300, "generative, with prior", "random"), "difference_mm"] == pytest.approx(-0.5)
+    assert table.loc[(300, "generative, with prior", "random"), ["t_low", "t_high"]].tolist() == pytest.approx(
+        [-0.5, -0.5]
+    )
     assert table.loc[(300, "generative, with prior", "random"), "verdict"] == "RF-Physical lower"
     assert table.loc[(100, "prior, regression", "shape"), "verdict"] == "MLP-Physical lower"
 
 
-def test_lambda_decision_changes_the_default_only_when_better_on_both_families():
-    def rows(offsets):
-        return pd.DataFrame(
-            [
-                dict(
-                    consistency=weight,
-                    model="rf-fwd",
-                    seed=seed,
-                    reference=f"{family}{r}",
-                    family=family,
-                    rmse_mm=5.0 + r + 0.1 * seed + offsets[weight].get(family, 0.0),
-                )
-                for weight in offsets
-                for seed in range(3)
-                for family in ("shape", "random")
-                for r in range(3)
-            ]
-        )
+def fwd_lambda_rows(offsets, noise=0.1):
+    """fwd_lambda's rows: three seeds on three references per family; ``offsets``: weight ->
+    family -> the weight's RMSE change, one number or one per reference."""
 
+    def offset(weight, family, r):
+        change = offsets[weight].get(family, 0.0)
+        return change[r] if isinstance(change, tuple) else change
+
+    return pd.DataFrame(
+        [
+            dict(
+                consistency=weight,
+                model="rf-fwd",
+                seed=seed,
+                reference=f"{family}{r}",
+                family=family,
+                rmse_mm=5.0 + r + noise * seed + offset(weight, family, r),
+            )
+            for weight in offsets
+            for seed in range(3)
+            for family in ("shape", "random")
+            for r in range(3)
+        ]
+    )
+
+
+def test_lambda_decision_changes_the_default_only_when_better_on_both_families():
     table, chosen = report.lambda_decision(
-        rows(
+        fwd_lambda_rows(
             {0.0: {"shape": -1.0}, 0.1: {"shape": -1.0, "random": -0.5}, 0.3: {"shape": -1.0, "random": -0.8}, 1.0: {}}
         )
     )
     assert chosen == 0.3 and table.loc[0.1, "better_on_both"] and not table.loc[0.0, "better_on_both"]
     assert table["chosen"].tolist() == [False, False, True]
     assert table.loc[0.0, "random_mm"] == pytest.approx(0.0, abs=1e-12)
-    _, chosen = report.lambda_decision(rows({0.0: {"shape": -1.0, "random": 0.5}, 1.0: {}}))
+    _, chosen = report.lambda_decision(fwd_lambda_rows({0.0: {"shape": -1.0, "random": 0.5}, 1.0: {}}))
     assert chosen == 1.0
 
 
-def test_where_flows_win_section_states_each_interval_that_excludes_zero(profile):
-    out = profile.output_dir
-    pd.DataFrame(
-        [
-            dict(
-                variant="paper",
-                flow="rf",
-                conditional_spread=0.1,
-                spread_floor=0.1,
-                shape_mm=0.1,
-                shape_low=-0.2,
-                shape_high=0.4,
-                random_mm=0.5,
-                random_low=0.2,
-                random_high=0.8,
-                step_N=0.0,
-                step_low=-0.001,
-                step_high=0.001,
-            ),
-            dict(
-                variant="folded",
-                flow="rf",
-                conditional_spread=0.5,
-                spread_floor=0.1,
-                shape_mm=-2.0,
-                shape_low=-3.0,
-                shape_high=-1.0,
-                random_mm=-0.1,
-                random_low=-0.5,
-                random_high=0.3,
-                step_N=-0.01,
-                step_low=-0.02,
-                step_high=0.0,
-            ),
-        ]
-    ).to_csv(out / "09_regime_map.csv", index=False)
-    pd.DataFrame(
-        [
-            dict(
-                episodes=100,
-                effect="prior, flow",
-                family=family,
-                difference_mm=-1.0,
-                low=-1.5,
-                high=-0.5,
-                verdict="RF-Physical lower",
-            )
-            for family in ("shape", "random")
-        ]
-    ).to_csv(out / "09_data_size_effects.csv", index=False)
+def test_lambda_decision_needs_the_t_interval_too():
+    """Random differences -0.2, -0.8, -1.4: every bootstrap mean of them is below 0, but the
+    t-interval is -0.8 +- 4.303 x 0.6 / sqrt(3) = [-2.29, +0.69]."""
+    table, chosen = report.lambda_decision(
+        fwd_lambda_rows({0.3: {"shape": -1.0, "random": (-0.2, -0.8, -1.4)}, 1.0: {}})
+    )
+    assert table.loc[0.3, "random_high"] < 0 and table.loc[0.3, "shape_high"] < 0
+    assert table.loc[0.3, ["random_t_low", "random_t_high"]].tolist() == pytest.approx([-2.2905, 0.6905], abs=1e-3)
+    assert not table.loc[0.3, "better_on_both"] and chosen == 1.0
+
+
+def test_where_flows_win_section_states_only_what_both_intervals_rank(profile):
+    write_sweep(profile, "ambiguity", ambiguity_rows(noise=0.0))
+    write_sweep(profile, "data_size", data_size_rows(noise=0.0))
     text = "\n".join(report.where_flows_win_section(profile))
-    assert "Of 4 comparisons" in text and "the flow is lower in 1, the MLP in 1, and 2 have no ranking" in text
+    # folded: 2 mm lower on both shapes (ranked) and on the one random reference (no t-interval: not ranked)
+    assert "Of 4 comparisons" in text and "the flow is lower in 1, the MLP in 0, and 3 have no ranking" in text
     assert (
-        "paper: the MLP lower in 1 (on the random references, by 0.50 mm), 1 without ranking; "
-        "folded: the flow lower in 1 (on the shapes, by 2.00 mm)"
-    ) in text
-    assert "| 100 | prior, flow | -1.00 [-1.50, -0.50] | -1.00 [-1.50, -0.50] |" in text
-    assert "| folded | RF | 0.500 / 0.100 | -2.00 [-3.00, -1.00] |" in text
+        "paper: 2 without ranking; folded: the flow lower in 1 (on the shapes, by 2.00 mm), 1 without ranking" in text
+    )
+    assert "| folded | RF | 0.300 / 0.100 | -2.00 [-2.00, -2.00] | -2.00 [-2.00, -2.00] |" in text
+    assert "| 100 | prior, flow | -1.00 [-1.00, -1.00] | -1.00 [-1.00, -1.00] |" in text
+    assert "| 300 | generative, with prior | -0.50 [-0.50, -0.50] | -0.50 [-0.50, -0.50] |" in text
 
 
 def diagnostics(weights):
@@ -306,41 +333,27 @@ def test_consistency_term_summary_says_what_the_term_sees(profile):
 
 
 def test_consistency_weight_section_states_the_rules_choice(profile):
-    decision = pd.DataFrame(
-        [
-            dict(
-                consistency=weight,
-                shape_mm=-0.2,
-                shape_low=-0.3,
-                shape_high=-0.1,
-                random_mm=random,
-                random_low=random - 0.1,
-                random_high=random + 0.1,
-                better_on_both=random < -0.1,
-                chosen=chosen,
-            )
-            for weight, random, chosen in ((0.1, 0.1, False), (0.3, -0.4, True))
-        ]
-    )
-    decision.to_csv(profile.output_dir / "11_fwd_lambda_decision.csv", index=False)
     diagnostics(weights=(0.0, 0.1, 0.3, 1.0)).to_csv(profile.output_dir / "11_fwd_lambda_diagnostics.csv")
+    offsets = {0.1: {"shape": -0.2, "random": 0.1}, 0.3: {"shape": -0.2, "random": -0.4}, 1.0: {}}
+    write_sweep(profile, "fwd_lambda", fwd_lambda_rows(offsets, noise=0.0))
     text = "\n".join(report.consistency_weight_section(profile))
     assert "| 0.3 | 0.0030 | 0.2000 | 0.505 / 0.005 | 0.550 / 0.050 |" in text
     assert "lambda = 0.3 is better on both families, so the default changes to it" in text
-    assert "| 0.1 | -0.20 [-0.30, -0.10] | +0.10 [+0.00, +0.20] |" in text
-    decision.assign(chosen=False).to_csv(profile.output_dir / "11_fwd_lambda_decision.csv", index=False)
+    assert "| 0.1 | -0.20 [-0.20, -0.20] | +0.10 [+0.10, +0.10] |" in text
+    offsets[0.3]["random"] = (-0.2, -0.8, -1.4)  # the bootstrap ranks it, the t-interval does not
+    write_sweep(profile, "fwd_lambda", fwd_lambda_rows(offsets, noise=0.0))
     assert "so the default stays" in "\n".join(report.consistency_weight_section(profile))
 
 
 def test_regime_summary_gives_the_range_of_each_sides_wins_per_variant():
-    def row(flow, shape, random):  # intervals of half-width 0.5 around each difference
+    def row(flow, shape, random, t_half=0.5):  # bootstrap intervals of half-width 0.5 around each difference
         return dict(
             variant="folded",
             flow=flow,
             **{
                 f"{family}_{k}": value + offset
                 for family, value in (("shape", shape), ("random", random))
-                for k, offset in (("mm", 0.0), ("low", -0.5), ("high", 0.5))
+                for k, offset in (("mm", 0.0), ("low", -0.5), ("high", 0.5), ("t_low", -t_half), ("t_high", t_half))
             },
         )
 
@@ -348,3 +361,164 @@ def test_regime_summary_gives_the_range_of_each_sides_wins_per_variant():
     text = report.regime_summary(regimes)
     assert "the flow is lower in 3, the MLP in 1, and 0 have no ranking" in text
     assert "folded: the flow lower in 3 (on both families, by 3.00-65.00 mm), the MLP lower in 1 (on the random" in text
+    wide_t = pd.DataFrame([row("rf", -60.0, -3.0, t_half=4.0)]).set_index(["variant", "flow"])
+    text = report.regime_summary(wide_t)  # -3 [-3.5, -2.5] by the bootstrap, [-7, 1] by t: not ranked
+    assert "the flow is lower in 1, the MLP in 0, and 1 has no ranking" in text
+    assert "folded: the flow lower in 1 (on the shapes, by 60.00 mm), 1 without ranking." in text
+
+
+def test_floor_progress_counts_references_still_improving_at_the_last_trial():
+    assert report.floor_progress(study_rows(), ILC_TRIALS) == (3, 4)
+    assert report.floor_progress(study_rows(), 40) == (0, 4)  # a longer budget: none stopped at its last
+    note = report.floor_note(study_rows(), ILC_TRIALS)
+    assert "Its best trial was its last (trial 8; trial 0 is the quasi-static plan) on 3 of 4 references" in note
+
+
+def test_verdict_counts_count_what_each_rule_ranks():
+    def interval(low, high, prefix=""):
+        return {f"{prefix}low": low, f"{prefix}high": high}
+
+    table1 = pd.DataFrame(
+        [
+            {**interval(-2, -1), **interval(-3, -0.5, "t_")},  # both rank it
+            {**interval(1, 2), **interval(-1, 4, "t_")},  # the bootstrap alone
+        ]
+    )
+    regimes = pd.DataFrame(
+        [
+            {
+                **interval(-1, 1, "shape_"),
+                **interval(-1, 1, "shape_t_"),  # neither
+                **interval(1, 2, "random_"),
+                **interval(0.5, 3, "random_t_"),  # both
+                **interval(0.1, 0.2, "step_"),  # the bootstrap only: no t-interval per step
+            }
+        ]
+    )
+    counts = report.verdict_counts({"table1": table1, "ambiguity": regimes})
+    assert counts.loc["best RF variant - best baseline (table1)"].tolist() == [2, 2, 1]
+    assert counts.loc["flow - MLP, tracking (ambiguity)"].tolist() == [2, 1, 1]
+    assert counts.loc["flow - MLP, per-step u error (ambiguity)"].tolist() == [1, 1, 0]
+    assert counts.loc["all"].tolist() == [5, 4, 2]
+    assert "prior and generative effects (data_size)" not in counts.index  # a study not given is left out
+
+
+def test_table4_appends_our_measured_rf_fwd_row(profile):
+    out = profile.output_dir
+    pd.DataFrame({"steps": [1, 4, 8], "latency_ms": [0.05, 0.1234, 0.3]}).to_csv(out / "euler_sweep.csv", index=False)
+    pd.DataFrame({"model": ["rf", "rf-fwd", "forward"], "minutes": [5.0, 10.2, 3.4]}).to_csv(
+        out / "training_rf.csv", index=False
+    )
+    pd.DataFrame({"family": ["burst", "burst", "shape"], "peak_speed": [0.45, 0.9, 3.0]}).to_csv(
+        out / "twin_results.csv", index=False
+    )
+    pd.DataFrame({"reference": ["star", "mean"], "vertical": [100.0, 4.5], "horizontal": [1.0, 9.0]}).to_csv(
+        out / "table3_twin.csv", index=False
+    )
+    table = report.table4(profile)
+    assert list(table.index[:-1]) == list(report.PAPER_TABLE4.index)  # the paper's rows, unchanged
+    assert table.loc["RF-FWD (paper)"].tolist() == report.PAPER_TABLE4.loc["RF-FWD (paper)"].tolist()
+    length_mm = 1e3 * HW_ROBOT.length
+    ours = table.loc["RF-FWD (this repo, twin)"]
+    assert ours.control == "Feedforward" and ours.inference_ms == "0.123"  # N = 4 Euler steps
+    assert ours["speed_m_s (v/L 1/s)"] == f"0.90 ({0.9 / HW_ROBOT.length:.2f})"  # the burst's peak, not a shape's
+    assert ours["error_mm (%L)"] == f"4.5-9.0 ({450 / length_mm:.2f}-{900 / length_mm:.2f}%)"  # the mean row
+    assert ours.train_min == "14"  # 10.2 + 3.4 for the surrogate
+
+
+def write_page_inputs(profile):
+    """The smallest set of result CSVs and sweep rows the claims and the results page read."""
+    out = profile.output_dir
+    write_results(profile)
+    rows = study_rows()
+    write_sweep(profile, "table1", rows)
+    write_sweep(profile, "ambiguity", ambiguity_rows(noise=0.0))
+    write_sweep(profile, "data_size", data_size_rows(noise=0.0))
+    write_sweep(profile, "fwd_lambda", fwd_lambda_rows({0.3: {"shape": -0.2, "random": -0.4}, 1.0: {}}, noise=0.0))
+    summaries = {family: report.with_ci(rows, "rmse_mm", family) for family in ("shape", "random")}
+    pd.concat(summaries, names=["family"]).to_csv(out / "08_table1_ci.csv")  # as notebook 08 writes it
+    report.protocol_table(rows.assign(condition="table1", coverage=1.0)).to_csv(out / "08_protocol.csv")
+    write_closed_loop(out)
+    diagnostics(weights=(0.0, 0.3, 1.0)).to_csv(out / "11_fwd_lambda_diagnostics.csv")
+    pd.DataFrame(
+        [dict(model="rf-fwd", peak_speed=0.76, rmse_yz_mm=0.65, rmse_pct_L=0.16, reference_peak_speed=0.79)]
+    ).to_csv(out / "stress_burst.csv", index=False)
+    pd.DataFrame(
+        {"model": ["rf-fwd", "rf-fwd", "mlp"], "mae_u1": [0.01, 0.02, 9.0], "mae_u2": [0.03, 0.03, 9.0]}
+    ).to_csv(out / "stress_complex3d.csv", index=False)
+    pd.DataFrame({"reference": ["star", "mean"], "vertical": [7.0, 6.0], "horizontal": [30.0, 23.35]}).to_csv(
+        out / "table3_twin.csv", index=False
+    )
+    pd.DataFrame({"steps": [4], "latency_ms": [0.161]}).to_csv(out / "euler_sweep.csv", index=False)
+    pd.DataFrame(
+        {"vertical": [3.2, 6.0, 7.0, 6.5, 6.1], "horizontal": [2.6, 23.35, 40.9, 31.7, 23.9]},
+        index=["no gap", "typical gap", "2 x youngs_modulus", "2 x density", "2 x damping"],
+    ).to_csv(out / "twin_sensitivity.csv")
+    pd.DataFrame(
+        [dict(model="mlp", size="hidden=256", parameters=135426, rmse_shape_mm=0.5, rmse_random_mm=2.3, epochs=240)]
+    ).to_csv(out / "baseline_sizes.csv", index=False)
+    pd.DataFrame({"rmse_shape_mm": [0.65], "rmse_random_mm": [3.27]}, index=["rf-fwd, lambda = 0.1"]).to_csv(
+        out / "design_sweep.csv"
+    )
+
+
+def test_claims_take_each_number_from_its_csv(profile):
+    write_page_inputs(profile)
+    table = report.claims(profile)
+    best = table.loc["Best RF variant against the best baseline (shapes / random)"]
+    # the change from the table1 study's 3-seed means (notebook 08), not from seed 0's Table I:
+    # shapes 4.6 against 5.6 mm, ranked; random 14.1 against 15.6 mm, ranked by the bootstrap alone
+    assert best.ours == "18 % lower / -10 %, no ranking"
+    said = best["what the measurements say"]
+    assert "over 3 seeds" in said and "shape: -1.00 mm [-1.13, -0.87] (t: [-1.00, -1.00]), RF-FWD lower" in said
+    assert "random: -1.50 mm [" in said and "(t: [-7.85, +4.85]), no ranking (an interval contains 0)" in said
+    assert "above the ILC floor of 0.10 / 0.10 mm (still improving at its last trial on 3 of 4 references" in said
+    assert table.loc["RF-FWD RMSE, shapes / random (mm)", "ours"] == "7.00 / 15.00"  # seed-0 Table I (write_results)
+    assert table.loc["Complex 3D: RF-FWD MAE u1 / u2 (N)", "ours"] == "0.015 / 0.030"  # RF-FWD's rows only
+    hardware = table.loc["Hardware mean RMSE, vertical / horizontal (mm)"]
+    assert hardware.ours == "6.00 / 23.35"
+    assert "without a reality gap 3.2 / 2.6 mm" in hardware["what the measurements say"]
+    assert "any other term at most 23.9 mm" in hardware["what the measurements say"]
+    assert "closed loop: 1.00 / 2.00 mm" in hardware["what the measurements say"]
+    assert table.loc["Inference per step, batch 1 (ms)", "ours"] == "0.161 (eager torch, N = 4)"
+
+
+def test_results_page_holds_every_table_and_section_and_only_existing_figures(profile, tmp_path):
+    write_page_inputs(profile)
+    (profile.output_dir / "05_burst.png").write_bytes(b"")
+    run = tmp_path / "run"
+    run.mkdir()
+    for name, seconds in (("01_simulator.ipynb", 120.0), ("07_comparison_tables.ipynb", 60.0)):
+        (run / name).write_text(json.dumps({"metadata": {"papermill": {"duration": seconds}}}))
+    tables = {
+        name: f"| {name} | made-up table |"
+        for name in ("table1_tracking", "table2_inputs", "table3_hardware", "table4_literature")
+    }
+    page = results_page(profile, tables, run)
+    headings = [line for line in page.splitlines() if line.startswith("## ")]
+    assert headings == [
+        "## Wall time per notebook (`make reproduce`, data and checkpoints cached)",
+        "## Table I - open-loop tracking RMSE (mm), shapes / random references",
+        "## Table II - phase lag on shapes (s), input energy on random references (N^2 s)",
+        "## Table III - hardware-twin tracking RMSE through the camera (mm)",
+        "## Table IV - comparison with the literature",
+        "## When a ranking is stated",
+        "## Table I with 95 % intervals and the floor (notebook 08)",
+        "## The evaluation protocol's effect (notebook 08)",
+        "## Closing the loop on the twin (notebook 10)",
+        "## Where a flow beats regression (notebook 09)",
+        "## RF-FWD's consistency weight (notebook 11)",
+        "## The paper's claims, reproduced or not",
+        "## Design choices",
+        "## Key figures",
+    ]
+    for heading, text in zip(headings[1:5], tables.values()):
+        assert f"{heading}\n\n{text}\n" in page  # each table under its heading
+    assert "| 01_simulator.ipynb | 2.0 |" in page and "Total: 2.0 min." in page  # 07 itself is not timed
+    assert "| best RF variant - best baseline (table1) | 2 | 2 | 1 |" in page  # random: the bootstrap alone
+    assert "on 3 of 4 references" in page
+    assert "| 18 % lower / -10 %, no ranking |" in page
+    assert "lambda = 0.3 is better on both families" in page
+    assert "### High-speed burst circle\n\n![High-speed burst circle](../figures/05_burst.png)" in page
+    assert page.count("![") == 1  # no other figure exists
+    assert page.endswith("05_burst.png)\n")

@@ -67,3 +67,53 @@ def test_bad_input_is_refused():
     rows = pd.DataFrame([dict(seed=0, reference="R1", rmse_mm=1.0), dict(seed=1, reference="R2", rmse_mm=1.0)])
     with pytest.raises(ValueError, match="every seed"):
         stats.seed_reference_grid(rows, "rmse_mm")
+
+
+def t_rows():
+    """Model a: two seeds, seed means 3, 5, 8 on R1-R3; model b: one seed, 2, 3, 5, its rows in
+    another order. Paired differences 1, 2, 3: mean 2, sd 1, n = 3."""
+    a = [(0, "R1", 2.0), (0, "R2", 5.0), (0, "R3", 7.0), (1, "R1", 4.0), (1, "R2", 5.0), (1, "R3", 9.0)]
+    b = [(0, "R3", 5.0), (0, "R1", 2.0), (0, "R2", 3.0)]
+    return pd.DataFrame(
+        [
+            dict(model=m, seed=s, reference=r, family="random", rmse_mm=v)
+            for m, cells in (("a", a), ("b", b))
+            for s, r, v in cells
+        ]
+    )
+
+
+def test_paired_t_interval_by_hand():
+    """t(0.975, 2 dof) = 4.302653 and t(0.75, 2 dof) = 0.816497 (t tables): 2 -+ t / sqrt(3)."""
+    interval = stats.paired_t(t_rows(), "a", "b", "random")
+    assert interval.estimate == pytest.approx(2.0)
+    assert (interval.low, interval.high) == pytest.approx((2 - 4.302653 / np.sqrt(3), 2 + 4.302653 / np.sqrt(3)))
+    assert not interval.excludes_zero  # -0.484: three references leave room for 0
+    narrow = stats.paired_t(t_rows(), "a", "b", level=0.5)  # family None: every row
+    assert (narrow.low, narrow.high) == pytest.approx((2 - 0.816497 / np.sqrt(3), 2 + 0.816497 / np.sqrt(3)))
+    flipped = stats.paired_t(t_rows(), "b", "a", "random")
+    assert (flipped.estimate, flipped.low) == pytest.approx((-2.0, -interval.high))
+    assert (
+        stats.difference(t_rows(), "a", "b", "random").low > 0
+    )  # the bootstrap ranks it (paired by name, not row order)
+
+
+def test_paired_t_needs_two_shared_references():
+    one = t_rows()[t_rows().reference == "R1"]
+    interval = stats.paired_t(one, "a", "b")
+    assert interval.estimate == pytest.approx(1.0) and np.isnan(interval.low) and not interval.excludes_zero
+    with pytest.raises(ValueError, match="same references"):
+        stats.paired_t(t_rows().drop(index=6), "a", "b")  # b lacks R3
+    with pytest.raises(ValueError, match="the rows score"):
+        stats.difference(t_rows().drop(index=6), "a", "b", "random")
+    with pytest.raises(ValueError, match="level"):
+        stats.paired_t(t_rows(), "a", "b", level=95)
+
+
+def test_a_ranking_needs_every_interval_on_one_side_of_zero():
+    below, above, across = stats.Interval(-1, -2, -0.5), stats.Interval(1, 0.5, 2), stats.Interval(-1, -3, 1)
+    assert stats.ranking(below) == -1 and stats.ranking(above, above) == 1
+    assert stats.ranking(below, across) == 0 and stats.ranking(below, above) == 0
+    assert stats.ranking(below, stats.Interval(-1, np.nan, np.nan)) == 0  # no t-interval: no ranking
+    with pytest.raises(ValueError, match="at least one"):
+        stats.ranking()

@@ -1,4 +1,8 @@
-"""The studies' rows (notebooks 08-11) turned into tables: intervals, differences, verdicts."""
+"""The studies' rows (notebooks 08-11) turned into tables: intervals, differences, verdicts.
+
+A difference gets two intervals, the two-way bootstrap over seeds and references and the paired
+t-interval over references on seed means (``compare``); a verdict in words needs both to
+exclude zero (``stats.ranking``)."""
 
 from __future__ import annotations
 
@@ -47,20 +51,24 @@ def table1_ci(rows: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(columns).rename_axis("model")
 
 
+def compare(rows: pd.DataFrame, model: str, other: str, family: str, value: str = "rmse_mm"):
+    """mean(model) - mean(other) on a family: the two-way bootstrap interval and the paired
+    t-interval over references on seed means."""
+    return stats.difference(rows, model, other, family, value), stats.paired_t(rows, model, other, family, value)
+
+
 def best_against_best(rows: pd.DataFrame, value: str = "rmse_mm") -> pd.DataFrame:
     """Per family: the best RF variant minus the best baseline (best: lowest mean), with its
-    interval, paired over references; a ranking is stated only where the interval excludes 0.
-    (Picking the best of each group from the same rows biases the difference towards 0.)"""
+    bootstrap (low, high) and paired t-interval (t_low, t_high); a ranking is stated only where
+    both exclude 0. (Picking the best of each group from the same rows biases the difference
+    towards 0.)"""
     out = []
     for family in ("shape", "random"):
         means = with_ci(rows, value, family)["mean"]
         rf, baseline = means.reindex(RF_FAMILY).idxmin(), means.reindex(BASELINES).idxmin()
-        interval = stats.difference(rows, rf, baseline, family, value)
-        verdict = (
-            f"{LABELS[rf]} {'lower' if interval.high < 0 else 'higher'}"
-            if interval.excludes_zero
-            else "no ranking (interval contains 0)"
-        )
+        interval, t = compare(rows, rf, baseline, family, value)
+        side = stats.ranking(interval, t)
+        verdict = f"{LABELS[rf]} {'lower' if side < 0 else 'higher'}" if side else "no ranking (an interval contains 0)"
         out.append(
             dict(
                 family=family,
@@ -69,6 +77,8 @@ def best_against_best(rows: pd.DataFrame, value: str = "rmse_mm") -> pd.DataFram
                 difference_mm=interval.estimate,
                 low=interval.low,
                 high=interval.high,
+                t_low=t.low,
+                t_high=t.high,
                 verdict=verdict,
             )
         )
@@ -103,8 +113,10 @@ def per_step_table(rows: pd.DataFrame, by, values) -> pd.DataFrame:
 
 def regime_map(rows: pd.DataFrame) -> pd.DataFrame:
     """Per ambiguity variant: the conditional spread of u (and the estimator's floor) and each
-    flow minus the MLP, z = 0 plans: tracking RMSE (mm) per family, paired over references,
-    and the per-step u error (N), over seeds; a verdict only where an interval excludes 0."""
+    flow minus the MLP, z = 0 plans: tracking RMSE (mm) per family, paired over references
+    (bootstrap and t-interval), and the per-step u error (N), over seeds; a verdict only where
+    both intervals exclude 0 (so none per step: one number per model leaves no references to
+    pair over)."""
     out = []
     plans = rows[rows["plan"] == "zero"]
     for variant, part in plans.groupby("variant", sort=False):
@@ -117,24 +129,26 @@ def regime_map(rows: pd.DataFrame) -> pd.DataFrame:
                 spread_floor=spread.conditional_spread_floor,
             )
             for family in ("shape", "random"):
-                interval = stats.difference(part, flow, "mlp", family)
+                interval, t = compare(part, flow, "mlp", family)
                 row.update(
                     {
                         f"{family}_mm": interval.estimate,
                         f"{family}_low": interval.low,
                         f"{family}_high": interval.high,
-                        f"{family}_verdict": _verdict(interval, flow),
+                        f"{family}_t_low": t.low,
+                        f"{family}_t_high": t.high,
+                        f"{family}_verdict": _verdict((interval, t), flow),
                     }
                 )
             # one number per trained model: the interval is over seeds alone, so it needs several
             steps = part.drop_duplicates(subset=["model", "seed"]).assign(reference="per step", family="step")
-            interval = stats.difference(steps, flow, "mlp", "step", "u_rmse_test")
+            interval, t = compare(steps, flow, "mlp", "step", "u_rmse_test")
             several = steps.groupby("model").seed.nunique().min() > 1
             row.update(
                 step_N=interval.estimate,
                 step_low=interval.low if several else np.nan,
                 step_high=interval.high if several else np.nan,
-                step_verdict=_verdict(interval, flow) if several else "one seed: no interval",
+                step_verdict=_verdict((interval, t), flow) if several else "one seed: no interval",
             )
             out.append(row)
     return pd.DataFrame(out).set_index(["variant", "flow"])
@@ -152,15 +166,15 @@ SIZE_EFFECTS = {
 def size_effects(rows: pd.DataFrame) -> pd.DataFrame:
     """Per training-set size and reference family: the physics prior's effect (each model with
     the prior minus the same model without) and being generative's (each flow minus the
-    regression with the same prior), tracking RMSE in mm paired over references; the effects
-    whose models the grid lacks are left out."""
+    regression with the same prior), tracking RMSE in mm paired over references (bootstrap and
+    t-interval); the effects whose models the grid lacks are left out."""
     out = []
     for episodes, part in rows.groupby("episodes"):
         for effect, (model, other) in SIZE_EFFECTS.items():
             if not {model, other} <= set(part["model"]):
                 continue  # a grid without one of them (the ci profile's)
             for family in ("shape", "random"):
-                interval = stats.difference(part, model, other, family)
+                interval, t = compare(part, model, other, family)
                 out.append(
                     dict(
                         episodes=episodes,
@@ -169,7 +183,9 @@ def size_effects(rows: pd.DataFrame) -> pd.DataFrame:
                         difference_mm=interval.estimate,
                         low=interval.low,
                         high=interval.high,
-                        verdict=_verdict(interval, model, other),
+                        t_low=t.low,
+                        t_high=t.high,
+                        verdict=_verdict((interval, t), model, other),
                     )
                 )
     return pd.DataFrame(out).set_index(["episodes", "effect", "family"])
@@ -178,19 +194,26 @@ def size_effects(rows: pd.DataFrame) -> pd.DataFrame:
 def lambda_decision(rows: pd.DataFrame, default: float = 1.0) -> tuple[pd.DataFrame, float]:
     """RF-FWD's consistency weight, the rule fixed before fwd_lambda ran: each weight minus the
     default (tracking RMSE, mm, paired over references) per family; the default changes only to
-    a weight whose intervals exclude zero in its favour on both families (of several, the one
-    lowest on the random references). Returns the table (``chosen`` marks the new default, if
-    any) and the weight chosen."""
+    a weight whose intervals (bootstrap and t, as for every verdict) exclude zero in its favour
+    on both families (of several, the one lowest on the random references). Returns the table
+    (``chosen`` marks the new default, if any) and the weight chosen."""
     weights = rows.assign(model=rows["consistency"].astype(float))
     out = []
     for weight in sorted(set(weights["model"]) - {default}):
-        row = dict(consistency=weight)
+        row, sides = dict(consistency=weight), []
         for family in ("shape", "random"):
-            interval = stats.difference(weights, weight, default, family)
+            interval, t = compare(weights, weight, default, family)
+            sides.append(stats.ranking(interval, t))
             row.update(
-                {f"{family}_mm": interval.estimate, f"{family}_low": interval.low, f"{family}_high": interval.high}
+                {
+                    f"{family}_mm": interval.estimate,
+                    f"{family}_low": interval.low,
+                    f"{family}_high": interval.high,
+                    f"{family}_t_low": t.low,
+                    f"{family}_t_high": t.high,
+                }
             )
-        row["better_on_both"] = row["shape_high"] < 0 and row["random_high"] < 0
+        row["better_on_both"] = sides == [-1, -1]
         out.append(row)
     table = pd.DataFrame(out).set_index("consistency")
     better = table[table["better_on_both"]]
@@ -198,7 +221,57 @@ def lambda_decision(rows: pd.DataFrame, default: float = 1.0) -> tuple[pd.DataFr
     return table.assign(chosen=table.index == chosen), chosen
 
 
-def _verdict(interval: stats.Interval, model: str, other: str = "mlp") -> str:
-    if not interval.excludes_zero:
+def floor_progress(rows: pd.DataFrame, iterations: int) -> tuple[int, int]:
+    """On how many of the ILC floor's references its best trial was its last (trial
+    ``iterations``; trial 0 is the quasi-static plan), of how many: there it was still improving
+    when it stopped, so the floor is at most its number."""
+    trials = rows.loc[rows["model"] == FLOOR, "ilc_best_trial"]
+    return int((trials == iterations).sum()), len(trials)
+
+
+# Where each study's verdicts sit in its table: label -> (study, column prefixes of the
+# comparisons, each with <prefix>low, <prefix>high and <prefix>t_low, <prefix>t_high).
+VERDICTS = {
+    "best RF variant - best baseline (table1)": ("table1", ("",)),
+    "flow - MLP, tracking (ambiguity)": ("ambiguity", ("shape_", "random_")),
+    "flow - MLP, per-step u error (ambiguity)": ("ambiguity", ("step_",)),
+    "prior and generative effects (data_size)": ("data_size", ("",)),
+    "each lambda - lambda = 1 (fwd_lambda)": ("fwd_lambda", ("shape_", "random_")),
+}
+
+
+def row_intervals(row: pd.Series, prefix: str = "") -> tuple[stats.Interval, stats.Interval]:
+    """One comparison of a verdict table's row: its bootstrap interval (<prefix>low, high) and
+    t-interval (<prefix>t_low, t_high; NaN where the row has none), for ``stats.ranking``."""
+    return tuple(
+        stats.Interval(np.nan, row.get(f"{prefix}{kind}low", np.nan), row.get(f"{prefix}{kind}high", np.nan))
+        for kind in ("", "t_")
+    )
+
+
+def verdict_counts(tables: dict) -> pd.DataFrame:
+    """How many comparisons each study's verdict table holds (``tables``: study -> the table of
+    best_against_best, regime_map, size_effects or lambda_decision), how many the bootstrap
+    interval alone would rank and how many both intervals rank (what the words state), and all
+    of them together; a comparison without a t-interval (none per step) is ranked by the
+    bootstrap alone only."""
+    out = {}
+    for label, (study, prefixes) in VERDICTS.items():
+        if study not in tables:
+            continue
+        counts = np.zeros(3, int)
+        for prefix in prefixes:
+            for _, row in tables[study].iterrows():
+                bootstrap, t = row_intervals(row, prefix)
+                counts += [1, stats.ranking(bootstrap) != 0, stats.ranking(bootstrap, t) != 0]
+        out[label] = dict(zip(("comparisons", "bootstrap alone", "bootstrap and t"), counts))
+    table = pd.DataFrame.from_dict(out, orient="index").rename_axis("verdicts")
+    return pd.concat([table, table.sum().rename("all").to_frame().T.rename_axis("verdicts")])
+
+
+def _verdict(intervals, model: str, other: str = "mlp") -> str:
+    """Which of two models is lower, in words, where every interval of their difference agrees."""
+    side = stats.ranking(*intervals)
+    if not side:
         return "no ranking"
-    return f"{LABELS[model]} lower" if interval.high < 0 else f"{LABELS[other]} lower"
+    return f"{LABELS[model]} lower" if side < 0 else f"{LABELS[other]} lower"

@@ -13,7 +13,7 @@ import pandas as pd
 from softflow.control.metrics import table_rows
 from softflow.profiles import Profile
 from softflow.rod.robots import HW_ROBOT
-from softflow.store import write_text
+from softflow.store import DATA_DIR, write_text
 from softflow.studies.study import FLOOR
 
 COLUMNS = {
@@ -61,6 +61,17 @@ SOURCES = {
     **{f"11_{name}.csv": "11_consistency_weight.ipynb" for name in ("fwd_lambda_decision", "fwd_lambda_diagnostics")},
 }
 
+# Where each study's rows come from: study -> notebook that runs it.
+SWEEP_SOURCES = {
+    "table1": "08_honest_table1.ipynb",
+    "protocol": "08_honest_table1.ipynb",
+    "data_size": "09_where_flows_win.ipynb",
+    "ambiguity": "09_where_flows_win.ipynb",
+    "closed_loop": "10_closed_loop.ipynb",
+    "twin_burst": "10_closed_loop.ipynb",
+    "fwd_lambda": "11_consistency_weight.ipynb",
+}
+
 # The paper's numbers (Tables I-IV of the paper in ../shared/paper).
 PAPER_TABLE1 = pd.DataFrame(
     {"shape_mm": [23.1, 15.6, 13.4, 6.7, 6.8, 5.0], "random_mm": [30.6, 8.4, 12.7, 5.2, 4.0, 3.5]},
@@ -98,6 +109,21 @@ def read_result(profile: Profile, name: str, **read_options) -> pd.DataFrame:
             f"(make reproduce runs every notebook in order)"
         )
     return pd.read_csv(path, **read_options)
+
+
+def read_sweep(profile: Profile, study: str) -> pd.DataFrame:
+    """A study's rows for a profile: shipped under the output folder's sweeps/ (the paper
+    profile's, figures/sweeps/), else the sweep cache's; or a ValueError naming the notebook
+    that runs the study."""
+    name = f"{study}-{profile.name}.csv"
+    for path in (profile.output_dir / "sweeps" / name, DATA_DIR / "sweeps" / name):
+        if path.exists():
+            return pd.read_csv(path)
+    notebook = SWEEP_SOURCES.get(study, "the notebook that runs it")
+    raise ValueError(
+        f"no rows of study {study!r} for profile {profile.name!r}: run notebooks/{notebook} "
+        f"(or `python -m softflow sweep {study} --profile {profile.name}`) first"
+    )
 
 
 def our_table(profile: Profile) -> pd.DataFrame:

@@ -6,6 +6,11 @@ here resamples both, independently (two-way), so an interval covers what a rerun
 seeds on new references of the same families would give. Differences between two models
 are paired over references (both are scored on the same ones) and unpaired over seeds
 (seed 1 of one model has nothing to do with seed 1 of another).
+
+The paired t-interval is a second, stricter check on a difference: it averages each model's
+seeds per reference and treats the references alone as the sample, so a difference that rests
+on a few references far from the rest stays unranked even where the bootstrap, which also sees
+the seeds, calls it. A ranking is stated in words only where both exclude zero (``ranking``).
 """
 
 from __future__ import annotations
@@ -14,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
+from scipy import stats as distributions
 
 N_BOOT = 10_000
 LEVEL = 0.95
@@ -66,13 +72,16 @@ def bootstrap(a, b=None, *, n_boot: int = N_BOOT, level: float = LEVEL, seed: in
     return Interval(float(estimate), float(low), float(high))
 
 
-def seed_reference_grid(rows: pd.DataFrame, value: str) -> np.ndarray:
+def seed_reference_grid(rows: pd.DataFrame, value: str, references=None) -> np.ndarray:
     """One model's rows (columns seed, reference, ``value``) as a (seeds, references) array,
-    references in the order of first appearance."""
+    references in the order given (another model's, to pair with it), else of first appearance."""
     grid = rows.pivot_table(index="seed", columns="reference", values=value, sort=False)
     if grid.isna().any().any():
         raise ValueError(f"{value}: not every seed scored every reference")
-    return grid[list(dict.fromkeys(rows["reference"]))].to_numpy()
+    order = list(dict.fromkeys(rows["reference"])) if references is None else list(references)
+    if set(order) != set(grid.columns):
+        raise ValueError(f"{value}: the rows score {sorted(grid.columns)}, not {sorted(order)}")
+    return grid[order].to_numpy()
 
 
 def summarise(rows: pd.DataFrame, value: str = "rmse_mm", by=("model", "family"), **options) -> pd.DataFrame:
@@ -96,7 +105,48 @@ def summarise(rows: pd.DataFrame, value: str = "rmse_mm", by=("model", "family")
 
 
 def difference(rows: pd.DataFrame, model: str, other: str, family: str, value: str = "rmse_mm", **options) -> Interval:
-    """mean(model) - mean(other) of ``value`` on a reference family, paired over references."""
+    """mean(model) - mean(other) of ``value`` on a reference family, paired over references
+    (the other model's grid in the model's reference order, whatever the order of its rows)."""
     part = rows[rows["family"] == family]
-    grids = [seed_reference_grid(part[part["model"] == name], value) for name in (model, other)]
+    references = dict.fromkeys(part.loc[part["model"] == model, "reference"])
+    grids = [seed_reference_grid(part[part["model"] == name], value, references) for name in (model, other)]
     return bootstrap(*grids, **options)
+
+
+def seed_means(rows: pd.DataFrame, value: str) -> pd.Series:
+    """One model's mean of ``value`` over its seeds per reference (every seed must score every
+    reference), indexed by reference in the order of first appearance."""
+    references = list(dict.fromkeys(rows["reference"]))
+    return pd.Series(seed_reference_grid(rows, value, references).mean(axis=0), index=references)
+
+
+def paired_t(
+    rows: pd.DataFrame, model: str, other: str, family: str | None = None, value: str = "rmse_mm", level: float = LEVEL
+) -> Interval:
+    """t-interval of mean(model) - mean(other) of ``value`` (on a reference family, or on every
+    row): the seed means' differences per reference, mean +- t sd / sqrt(n) with n - 1 degrees
+    of freedom. Fewer than two references give no interval (NaN bounds: it excludes nothing)."""
+    if not 0 < level < 1:
+        raise ValueError(f"need 0 < level < 1; got {level!r}")
+    part = rows if family is None else rows[rows["family"] == family]
+    a, b = (seed_means(part[part["model"] == name], value) for name in (model, other))
+    if len(a) == 0 or set(a.index) != set(b.index):
+        raise ValueError(f"{model} and {other} must score the same references; got {list(a.index)} and {list(b.index)}")
+    differences = (a - b[a.index]).to_numpy()
+    estimate, n = float(differences.mean()), len(differences)
+    if n < 2:
+        return Interval(estimate, np.nan, np.nan)
+    half = distributions.t.ppf((1 + level) / 2, n - 1) * differences.std(ddof=1) / np.sqrt(n)
+    return Interval(estimate, float(estimate - half), float(estimate + half))
+
+
+def ranking(*intervals: Interval) -> int:
+    """-1 where every interval lies below zero, +1 where every one lies above, else 0: the rule
+    for stating a ranking in words (an interval without bounds ranks nothing)."""
+    if not intervals:
+        raise ValueError("ranking needs at least one interval")
+    if all(i.high < 0 for i in intervals):
+        return -1
+    if all(i.low > 0 for i in intervals):
+        return 1
+    return 0

@@ -1,4 +1,9 @@
-"""docs/results.md: every table, the claims checked, and the studies' verdicts in words."""
+"""docs/results.md (``results_page``): every table, the claims checked, and the studies'
+verdicts in words.
+
+The verdicts are computed here from the studies' rows (figures/sweeps/, intervals only, no
+model runs), so every one follows the current rule: words only where both the bootstrap and
+the paired t-interval exclude zero."""
 
 from __future__ import annotations
 
@@ -8,10 +13,21 @@ import pandas as pd
 
 from softflow.profiles import Profile
 from softflow.report.provenance import commit, machine, notebook_wall_times
-from softflow.report.study_tables import interval_text, table_order
-from softflow.report.tables import BASELINES, LABELS, RF_FAMILY, markdown, our_table, read_result
+from softflow.report.study_tables import (
+    best_against_best,
+    floor_progress,
+    interval_text,
+    lambda_decision,
+    regime_map,
+    row_intervals,
+    size_effects,
+    table_order,
+    verdict_counts,
+)
+from softflow.report.tables import BASELINES, LABELS, RF_FAMILY, markdown, our_table, read_result, read_sweep
 from softflow.studies import stats
 from softflow.studies.study import FLOOR
+from softflow.studies.table1 import TABLE1
 
 FIGURES = [
     ("Open-loop tracking, RF family (Circle, Heart, Rand2, Rand3)", "04_tracking_rf.png"),
@@ -39,10 +55,10 @@ FIGURES = [
 
 def claims(profile: Profile) -> pd.DataFrame:
     """The paper's headline numbers beside ours, each with what the measurements say about a
-    gap (every number from a result CSV; notebook 08 for the intervals, floor and protocol)."""
+    gap (every number from a result CSV; notebook 08 for the intervals, floor and protocol).
+    The best-against-best row rests on the table1 study's seeds alone, its change and its
+    difference alike."""
     ours = our_table(profile)
-    baseline, family = ours.loc[["mlp", "lstm", "transformer"]].min(), ours.loc[["rf", "rf-physical", "rf-fwd"]].min()
-    margin = 100 * (1 - family / baseline)
     burst = read_result(profile, "stress_burst.csv").set_index("model").loc["rf-fwd"]
     complex3d = read_result(profile, "stress_complex3d.csv").query("model == 'rf-fwd'")
     twin = read_result(profile, "table3_twin.csv").set_index("reference").loc["mean"]
@@ -52,12 +68,23 @@ def claims(profile: Profile) -> pd.DataFrame:
     other = gaps.drop(index=["no gap", "typical gap", "2 x youngs_modulus", "2 x density"]).horizontal.max()
     closed = read_result(profile, "10_table3_extended.csv").set_index(["gravity", "reference"]).xs("mean", level=1)
     summary = read_result(profile, "08_table1_ci.csv").set_index(["family", "model"])["mean"]
-    differences = read_result(profile, "08_differences.csv").set_index("family")
+    seeds = read_sweep(profile, "table1")
+    differences = best_against_best(seeds)
+    improving, references = floor_progress(seeds, TABLE1[profile.name]["ilc_iterations"])
     protocol = read_result(profile, "08_protocol.csv").set_index("condition")
     models = summary.drop(index=FLOOR, level="model")
     ratio = {f: models.loc[f] / summary.loc[(f, FLOOR)] for f in ("shape", "random")}
+    change = " / ".join(
+        _change_text(
+            100 * (summary.loc[(f, d.best_rf)] / summary.loc[(f, d.best_baseline)] - 1),
+            stats.ranking(*row_intervals(d)),
+        )
+        for f, d in differences.iterrows()
+    )
     paired = "; ".join(
-        f"{f}: {d.difference_mm:+.2f} mm [{d.low:+.2f}, {d.high:+.2f}], {d.verdict}" for f, d in differences.iterrows()
+        f"{f}: {d.difference_mm:+.2f} mm [{d.low:+.2f}, {d.high:+.2f}] (t: [{d.t_low:+.2f}, {d.t_high:+.2f}]), "
+        f"{d.verdict}"
+        for f, d in differences.iterrows()
     )
     baselines = protocol.reindex(columns=BASELINES)
     spread = protocol.reindex(columns=RF_FAMILY).stack()
@@ -65,11 +92,13 @@ def claims(profile: Profile) -> pd.DataFrame:
         (
             "Best RF variant against the best baseline (shapes / random)",
             "> 50 % lower / > 50 % lower",
-            f"{relative(margin.shape_mm)} / {relative(margin.random_mm)}",
-            f"best RF variant - best baseline over seeds and references (notebook 08), {paired}; every model is "
+            change,
+            f"the change and the difference of the means over {seeds.loc[seeds.model != FLOOR, 'seed'].nunique()} "
+            f"seeds and the references (notebook 08), best RF variant - best baseline, {paired}; every model is "
             f"{ratio['shape'].min():.0f}-{ratio['shape'].max():.0f}x (shapes) and {ratio['random'].min():.0f}-"
             f"{ratio['random'].max():.0f}x (random) above the ILC floor of {summary.loc[('shape', FLOOR)]:.2f} / "
-            f"{summary.loc[('random', FLOOR)]:.2f} mm",
+            f"{summary.loc[('random', FLOOR)]:.2f} mm (still improving at its last trial on {improving} of "
+            f"{references} references: at most that)",
         ),
         (
             "RF-FWD RMSE, shapes / random (mm)",
@@ -117,6 +146,40 @@ def claims(profile: Profile) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=["claim", "paper", "ours", "what the measurements say"]).set_index("claim")
 
 
+def floor_note(rows: pd.DataFrame, iterations: int) -> str:
+    """What the ILC floor is, and on how many references it was still improving when it stopped."""
+    improving, references = floor_progress(rows, iterations)
+    return (
+        "The floor is iterative learning control on the true simulator: what an open-loop plan reaches with an "
+        f"exact model and many trials. Its best trial was its last (trial {iterations}; trial 0 is the quasi-static "
+        f"plan) on {improving} of {references} references, so it was still improving there when it stopped: an "
+        "upper bound on the true floor."
+    )
+
+
+def ranking_rule_section(profile: Profile) -> list[str]:
+    """The rule for stating a ranking in words, and how many of the studies' comparisons it
+    ranks beside the bootstrap alone (notebooks 08, 09, 11)."""
+    tables = {
+        "table1": best_against_best(read_sweep(profile, "table1")),
+        "ambiguity": regime_map(read_sweep(profile, "ambiguity")),
+        "data_size": size_effects(read_sweep(profile, "data_size")),
+        "fwd_lambda": lambda_decision(read_sweep(profile, "fwd_lambda"))[0],
+    }
+    return [
+        "## When a ranking is stated",
+        "",
+        "A difference between two models gets two 95 % intervals: the two-way bootstrap over training seeds and "
+        "references, and the paired t-interval over references on each model's mean over its seeds "
+        "(`softflow.studies.stats`). A ranking (lower, higher, better) is stated in words only where both exclude "
+        "zero. The studies' comparisons, and how many each rule ranks (the per-step u error is one number per "
+        "trained model: no references to pair over, so no t-interval and no ranking in words):",
+        "",
+        markdown(verdict_counts(tables)),
+        "",
+    ]
+
+
 def trust_section(profile: Profile) -> list[str]:
     """Table I with intervals and the floor, the paired difference and the protocol table (notebook 08)."""
     summary = read_result(profile, "08_table1_ci.csv")
@@ -124,22 +187,24 @@ def trust_section(profile: Profile) -> list[str]:
     table = summary.pivot(index="model", columns="family", values="cell")[["shape", "random"]]
     table = table.reindex(table_order(table.index))
     counts = summary.groupby("family").agg(seeds=("seeds", "max"), references=("references", "max"))
-    differences = read_result(profile, "08_differences.csv").set_index("family")
+    seeds = read_sweep(profile, "table1")
+    differences = best_against_best(seeds)
     protocol = read_result(profile, "08_protocol.csv").set_index("condition")
     return [
         "## Table I with 95 % intervals and the floor (notebook 08)",
         "",
         f"Mean RMSE (mm) [95 % two-way bootstrap interval over {counts.seeds.max()} training seeds and "
         f"{counts.loc['shape', 'references']} shapes / {counts.loc['random', 'references']} random references; "
-        "seed 0 is the shipped model]. The floor is iterative learning control on the true simulator: what an "
-        "open-loop plan reaches with an exact model and many trials (an upper bound on the true floor; notebook 08 "
-        "says on how many references it was still improving at its last trial).",
+        f"seed 0 is the shipped model]. {floor_note(seeds, TABLE1[profile.name]['ilc_iterations'])}",
         "",
         markdown(table),
         "",
-        "Best RF variant - best baseline, paired over references:",
+        "Best RF variant - best baseline, paired over references (bootstrap low, high; paired t-interval t_low, "
+        "t_high):",
         "",
-        markdown(differences[["best_rf", "best_baseline", "difference_mm", "low", "high", "verdict"]], 3),
+        markdown(
+            differences[["best_rf", "best_baseline", "difference_mm", "low", "high", "t_low", "t_high", "verdict"]], 3
+        ),
         "",
         "## The evaluation protocol's effect (notebook 08)",
         "",
@@ -201,16 +266,16 @@ def closed_loop_section(profile: Profile) -> list[str]:
 
 def regime_summary(regimes: pd.DataFrame) -> str:
     """The regime map in words, generated: how many flow-vs-MLP tracking comparisons each side
-    wins (95 % interval excludes zero), then per variant how many and by how much (the ranges
-    of the differences); the table beside it has every interval."""
+    wins (both 95 % intervals, bootstrap and paired t, exclude zero), then per variant how many
+    and by how much (the ranges of the differences); the table beside it has the bootstrap
+    intervals."""
     clauses, totals = [], {"flow": 0, "MLP": 0, "none": 0}
     for variant, rows in regimes.groupby(level="variant", sort=False):
         differences = {"flow": [], "MLP": [], "none": []}
         for _, row in rows.iterrows():
             for family in ("shape", "random"):
-                interval = stats.Interval(*(row[f"{family}_{k}"] for k in ("mm", "low", "high")))
-                side = "none" if not interval.excludes_zero else "flow" if interval.high < 0 else "MLP"
-                differences[side].append((family, abs(interval.estimate)))
+                side = {0: "none", -1: "flow", 1: "MLP"}[stats.ranking(*row_intervals(row, f"{family}_"))]
+                differences[side].append((family, abs(row[f"{family}_mm"])))
         parts = [
             f"the {side} lower in {len(d)} ({_families_text(d)}, by {_range_text([v for _, v in d])} mm)"
             for side, d in differences.items()
@@ -225,7 +290,8 @@ def regime_summary(regimes: pd.DataFrame) -> str:
     return (
         f"Of {comparisons} comparisons of a flow with the MLP (tracking RMSE, z = 0 plans; variant x flow x "
         f"reference family), the flow is lower in {totals['flow']}, the MLP in {totals['MLP']}, and "
-        f"{totals['none']} {'has' if totals['none'] == 1 else 'have'} no ranking (the 95 % interval contains 0). "
+        f"{totals['none']} {'has' if totals['none'] == 1 else 'have'} no ranking (the bootstrap or the paired "
+        "t-interval contains 0). "
         "By variant: " + "; ".join(clauses) + "."
     )
 
@@ -265,7 +331,7 @@ def _family_differences(frame: pd.DataFrame) -> dict:
 def where_flows_win_section(profile: Profile) -> list[str]:
     """The regime map with its paragraph, and what the prior and being generative each change
     with data size (notebook 09)."""
-    regimes = read_result(profile, "09_regime_map.csv", index_col=[0, 1])
+    regimes = regime_map(read_sweep(profile, "ambiguity"))
     table = pd.DataFrame(
         {
             "spread / floor (N)": [
@@ -277,7 +343,7 @@ def where_flows_win_section(profile: Profile) -> list[str]:
         index=regimes.index,
     )
     table = table.reset_index("flow").assign(flow=lambda t: t["flow"].map(LABELS))
-    effects = read_result(profile, "09_data_size_effects.csv", index_col=[0, 1, 2])
+    effects = size_effects(read_sweep(profile, "data_size"))
     by_size = _difference_text(effects.difference_mm, effects.low, effects.high).unstack("family")
     by_size = by_size[["shape", "random"]].reset_index("effect")
     return [
@@ -286,9 +352,9 @@ def where_flows_win_section(profile: Profile) -> list[str]:
         regime_summary(regimes),
         "",
         "Each flow minus the MLP per dataset variant, with the variant's conditional spread of u and its estimator "
-        "floor: tracking RMSE paired over Table I's references (mean [95 % interval] over seeds and references) "
-        "and the per-step u error on held-out transitions (interval over seeds). Below zero the flow "
-        "is better.",
+        "floor: tracking RMSE paired over Table I's references (mean [95 % bootstrap interval] over seeds and "
+        "references; the words above also need the paired t-interval) and the per-step u error on held-out "
+        "transitions (interval over seeds). Below zero the flow's error is the smaller.",
         "",
         markdown(table),
         "",
@@ -320,7 +386,7 @@ def consistency_weight_section(profile: Profile, taus=(0.05, 0.5)) -> list[str]:
         },
         index=diagnostics.index,
     )
-    decision = read_result(profile, "11_fwd_lambda_decision.csv", index_col=0)
+    decision = lambda_decision(read_sweep(profile, "fwd_lambda"))[0]
     chosen = decision.index[decision["chosen"].astype(bool)]
     table = pd.DataFrame(_family_differences(decision))
     verdict = (
@@ -332,7 +398,7 @@ def consistency_weight_section(profile: Profile, taus=(0.05, 0.5)) -> list[str]:
         "## RF-FWD's consistency weight (notebook 11)",
         "",
         "Each lambda minus the shipped lambda = 1 (mm, paired over Table I's references); by the rule fixed before "
-        f"the study ran, {verdict}:",
+        f"the study ran (with both intervals, as every verdict here), {verdict}:",
         "",
         markdown(table),
         "",
@@ -401,14 +467,20 @@ def relative(lower_pct: float) -> str:
     return f"{abs(lower_pct):.0f} % {'lower' if lower_pct >= 0 else 'higher'}"
 
 
+def _change_text(change_pct: float, side: int) -> str:
+    """A change in percent: in words where a ranking is stated (``side`` from stats.ranking),
+    else signed, with 'no ranking'."""
+    return relative(-change_pct) if side else f"{change_pct:+.0f} %, no ranking"
+
+
 def results_page(profile: Profile, tables: dict, run_dir: Path) -> str:
     """docs/results.md: machine, commit, wall times, Tables I-IV, the paper's claims, key figures."""
     times = notebook_wall_times(run_dir)
     lines = [
         "# Results (paper profile)",
         "",
-        "Generated by `notebooks/07_comparison_tables.ipynb` from the CSV results of notebooks 03-06 and 08-11 "
-        "(`make reproduce`). Do not edit by hand.",
+        "Generated by `notebooks/07_comparison_tables.ipynb` from the CSV results of notebooks 03-06 and 08-11 and "
+        "the studies' rows in `figures/sweeps/` (`make reproduce`). Do not edit by hand.",
         "",
         f"- Machine: {machine()}",
         f"- Commit: {commit()}",
@@ -417,9 +489,11 @@ def results_page(profile: Profile, tables: dict, run_dir: Path) -> str:
         "",
         "## Wall time per notebook (`make reproduce`, data and checkpoints cached)",
         "",
-        markdown(times.to_frame().rename_axis("notebook"), 1) if len(times) else "(no papermill run found)",
-        "",
-        f"Total: {times.sum():.1f} min." if len(times) else "",
+        *(
+            [markdown(times.to_frame().rename_axis("notebook"), 1), "", f"Total: {times.sum():.1f} min."]
+            if len(times)
+            else ["(no papermill run found)"]
+        ),
         "",
     ]
     titles = {
@@ -430,6 +504,7 @@ def results_page(profile: Profile, tables: dict, run_dir: Path) -> str:
     }
     for name, title in titles.items():
         lines += [f"## {title}", "", tables[name], ""]
+    lines += ranking_rule_section(profile)
     lines += trust_section(profile)
     lines += closed_loop_section(profile)
     lines += where_flows_win_section(profile)
