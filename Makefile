@@ -2,6 +2,7 @@
 #   make reproduce   run every notebook (PROFILE=paper by default; PROFILE=ci for minutes)
 #   make test        unit tests + nbval of the committed notebooks (ci profile)
 #   make study       recompute every cell of the studies (notebooks 08-11) on a local Dask cluster
+#   make strip       clean the committed notebooks after regenerating their ci outputs
 SHELL := /bin/bash
 PYTHON_BASE ?= python3.11
 VENV := .venv
@@ -11,7 +12,7 @@ PROFILE ?= paper
 BENCH_PROFILE ?= ci
 NOTEBOOKS := $(sort $(wildcard notebooks/[0-9]*.ipynb))
 
-.PHONY: venv test lint reproduce study bench lab clean lock
+.PHONY: venv test lint reproduce study bench lab clean lock strip
 
 venv: $(STAMP)
 
@@ -47,6 +48,14 @@ lint: $(STAMP)
 	$(VENV)/bin/ruff check softflow tests benchmarks notebooks
 	$(VENV)/bin/ruff format --check softflow tests benchmarks
 	$(VENV)/bin/lint-imports
+
+# The committed notebooks are their ci run without its run record. Regenerate one with
+#   .venv/bin/papermill --cwd notebooks -p profile ci notebooks/NN_x.ipynb /tmp/NN_x.ipynb
+# and copy it back; this then drops the execution timestamps, papermill's metadata and its
+# injected-parameters cell, and re-encodes the figures losslessly (tests/test_notebooks_clean.py
+# fails on any of those left, or on more than 1.5 MB of notebooks in all).
+strip: $(STAMP)
+	$(PY) tests/strip_notebooks.py
 
 # 07 reads every other notebook's results: it runs last.
 reproduce: $(STAMP)

@@ -7,7 +7,7 @@
 - a whole 500-step trajectory planned in one batched call (Controller.plan).
 
 Uses the profile's trained models (default: ci; trains them first if missing).
-Writes benchmarks/results/planning.json and prints a summary.
+Writes figures/bench/planning.csv and prints a summary.
 """
 
 from __future__ import annotations

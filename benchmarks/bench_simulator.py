@@ -6,7 +6,7 @@
    venv .venv-elastica): wall time per simulated second, our speed-up (one episode, and
    per episode in a batch of 256), and the tip-trajectory difference of a 2 s response.
 
-Writes benchmarks/results/simulator.json and prints a summary.
+Writes figures/bench/simulator.csv and prints a summary.
 """
 
 from __future__ import annotations

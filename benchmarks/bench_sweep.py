@@ -2,7 +2,7 @@
 each time, on a LocalCluster of 1 and then 2 (or --workers) single-threaded processes,
 side by side in one run. The default grid, ``data_size`` in the ci profile, is four cells
 that each train a model from scratch, so the cells are the work and nothing is cached
-between runs. Writes benchmarks/results/sweep.json.
+between runs. Writes figures/bench/sweep.csv.
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@ each model trains a few epochs of its profile budget (the same steps per epoch, 
 validation and single thread as the real run) into a scratch folder, one after another
 so no two share the cores; seconds per epoch times the budget's epochs gives the wall time
 of a full run (an upper bound: early stopping can end it sooner). RF-FWD's forward
-surrogate is timed as its own row. Writes benchmarks/results/training.json.
+surrogate is timed as its own row. Writes figures/bench/training.csv.
 """
 
 from __future__ import annotations

@@ -8,6 +8,8 @@ EXPORTS = {
     "tables": [
         "COLUMNS",
         "MODELS",
+        "BASELINES",
+        "RF_FAMILY",
         "LABELS",
         "SOURCES",
         "SWEEP_SOURCES",
