@@ -7,7 +7,7 @@ from __future__ import annotations
 import os
 import platform
 import subprocess
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 import pandas as pd
@@ -43,7 +43,7 @@ def commit() -> str:
 def write_results(name: str, results: dict) -> Path:
     """figures/bench/<name>.csv: quantity, value, machine, date (UTC), commit."""
     RESULTS.mkdir(parents=True, exist_ok=True)
-    stamp = dict(machine=machine(), date=datetime.now(timezone.utc).strftime("%Y-%m-%d"), commit=commit())
+    stamp = dict(machine=machine(), date=datetime.now(UTC).strftime("%Y-%m-%d"), commit=commit())
     rows = [dict(quantity=k, value=v, **stamp) for k, v in _flat(results).items()]
     path = RESULTS / f"{name}.csv"
     pd.DataFrame(rows).to_csv(path, index=False)
