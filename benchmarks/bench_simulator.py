@@ -42,7 +42,7 @@ def run_pyelastica(u: np.ndarray) -> dict:
         np.save(Path(tmp) / "u.npy", u)
         script = (
             f"import sys, numpy as np; sys.path[:0] = [{str(HERE)!r}, {str(HERE.parent)!r}]; import pyelastica_rod;"
-            f"from softflow.robots import SIM_ROBOT;"
+            f"from softflow.rod.robots import SIM_ROBOT;"
             f"r = pyelastica_rod.simulate(SIM_ROBOT, np.load({str(Path(tmp) / 'u.npy')!r}));"
             f"np.save({str(Path(tmp) / 'tip.npy')!r}, r['tip']); print(r['wall_seconds'])"
         )

@@ -1,4 +1,4 @@
-"""The rod of ``softflow.sim.Simulator(robot, gravity="none")`` in PyElastica (benchmark only).
+"""The rod of ``softflow.rod.Simulator(robot, gravity="none")`` in PyElastica (benchmark only).
 
 ``simulate`` runs one episode of the same rod and input in PyElastica, an explicit,
 discrete, extensible and shearable Cosserat-rod code, so that a benchmark can report

@@ -45,7 +45,7 @@ def test_a_rollout_does_not_depend_on_threads_or_chunk_size():
 @pytest.mark.parametrize(
     "kwargs, message",
     [
-        (dict(robot=None), "robot must be a softflow.robots.Robot"),
+        (dict(robot=None), "robot must be a softflow.rod.Robot"),
         (dict(chunk_size=0), "chunk_size must be an integer >= 1; got 0"),
         (dict(threads=0), "threads must be an integer >= 1; got 0"),
         (dict(dt="0.01"), "dt must be a positive number of seconds; got '0.01'"),

@@ -74,7 +74,7 @@ class Simulator:
         chunk_size: int = 256,
     ):
         if not isinstance(robot, Robot):
-            raise ValueError(f"robot must be a softflow.robots.Robot (e.g. SIM_ROBOT); got {type(robot).__name__}")
+            raise ValueError(f"robot must be a softflow.rod.Robot (e.g. SIM_ROBOT); got {type(robot).__name__}")
         check_choice(gravity, "gravity", GRAVITY_DIRECTIONS)
         for name, value, low in (
             ("order", order, 0),
