@@ -57,6 +57,11 @@ def compare(rows: pd.DataFrame, model: str, other: str, family: str, value: str 
     return stats.difference(rows, model, other, family, value), stats.paired_t(rows, model, other, family, value)
 
 
+def interval_columns(interval, t) -> dict:
+    """A difference as table columns: the estimate, its bootstrap interval and its t-interval."""
+    return dict(difference_mm=interval.estimate, low=interval.low, high=interval.high, t_low=t.low, t_high=t.high)
+
+
 def best_against_best(rows: pd.DataFrame, value: str = "rmse_mm") -> pd.DataFrame:
     """Per family: the best RF variant minus the best baseline (best: lowest mean), with its
     bootstrap (low, high) and paired t-interval (t_low, t_high); a ranking is stated only where
@@ -74,11 +79,7 @@ def best_against_best(rows: pd.DataFrame, value: str = "rmse_mm") -> pd.DataFram
                 family=family,
                 best_rf=rf,
                 best_baseline=baseline,
-                difference_mm=interval.estimate,
-                low=interval.low,
-                high=interval.high,
-                t_low=t.low,
-                t_high=t.high,
+                **interval_columns(interval, t),
                 verdict=verdict,
             )
         )
@@ -180,11 +181,7 @@ def size_effects(rows: pd.DataFrame) -> pd.DataFrame:
                         episodes=episodes,
                         effect=effect,
                         family=family,
-                        difference_mm=interval.estimate,
-                        low=interval.low,
-                        high=interval.high,
-                        t_low=t.low,
-                        t_high=t.high,
+                        **interval_columns(interval, t),
                         verdict=_verdict((interval, t), model, other),
                     )
                 )
