@@ -57,9 +57,16 @@ def compare(rows: pd.DataFrame, model: str, other: str, family: str, value: str 
     return stats.difference(rows, model, other, family, value), stats.paired_t(rows, model, other, family, value)
 
 
-def interval_columns(interval, t) -> dict:
-    """A difference as table columns: the estimate, its bootstrap interval and its t-interval."""
-    return dict(difference_mm=interval.estimate, low=interval.low, high=interval.high, t_low=t.low, t_high=t.high)
+def _interval_columns(interval, t, prefix: str = "", estimate: str = "difference_mm") -> dict:
+    """A difference as table columns: the estimate, its bootstrap interval and its t-interval
+    (``prefix`` names a family's columns in a wide table, e.g. shape_low)."""
+    return {
+        estimate: interval.estimate,
+        f"{prefix}low": interval.low,
+        f"{prefix}high": interval.high,
+        f"{prefix}t_low": t.low,
+        f"{prefix}t_high": t.high,
+    }
 
 
 def best_against_best(rows: pd.DataFrame, value: str = "rmse_mm") -> pd.DataFrame:
@@ -79,7 +86,7 @@ def best_against_best(rows: pd.DataFrame, value: str = "rmse_mm") -> pd.DataFram
                 family=family,
                 best_rf=rf,
                 best_baseline=baseline,
-                **interval_columns(interval, t),
+                **_interval_columns(interval, t),
                 verdict=verdict,
             )
         )
@@ -133,11 +140,7 @@ def regime_map(rows: pd.DataFrame) -> pd.DataFrame:
                 interval, t = compare(part, flow, "mlp", family)
                 row.update(
                     {
-                        f"{family}_mm": interval.estimate,
-                        f"{family}_low": interval.low,
-                        f"{family}_high": interval.high,
-                        f"{family}_t_low": t.low,
-                        f"{family}_t_high": t.high,
+                        **_interval_columns(interval, t, f"{family}_", f"{family}_mm"),
                         f"{family}_verdict": _verdict((interval, t), flow),
                     }
                 )
@@ -181,7 +184,7 @@ def size_effects(rows: pd.DataFrame) -> pd.DataFrame:
                         episodes=episodes,
                         effect=effect,
                         family=family,
-                        **interval_columns(interval, t),
+                        **_interval_columns(interval, t),
                         verdict=_verdict((interval, t), model, other),
                     )
                 )
@@ -201,15 +204,7 @@ def lambda_decision(rows: pd.DataFrame, default: float = 1.0) -> tuple[pd.DataFr
         for family in ("shape", "random"):
             interval, t = compare(weights, weight, default, family)
             sides.append(stats.ranking(interval, t))
-            row.update(
-                {
-                    f"{family}_mm": interval.estimate,
-                    f"{family}_low": interval.low,
-                    f"{family}_high": interval.high,
-                    f"{family}_t_low": t.low,
-                    f"{family}_t_high": t.high,
-                }
-            )
+            row.update(_interval_columns(interval, t, f"{family}_", f"{family}_mm"))
         row["better_on_both"] = sides == [-1, -1]
         out.append(row)
     table = pd.DataFrame(out).set_index("consistency")
