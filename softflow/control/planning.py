@@ -199,8 +199,8 @@ class Controller:
         if self.generative:
             generator = torch.Generator().manual_seed(self.seed if seed is None else seed)
             z = torch.randn((B, T if noise == "fresh" else 1, dims.inputs), generator=generator)
-            zero = torch.zeros_like(z) if noise == "zero" else z
-            options["noise"] = zero.expand(B, T, dims.inputs).reshape(B * T, dims.inputs)
+            start = torch.zeros_like(z) if noise == "zero" else z  # where each step's flow starts
+            options["noise"] = start.expand(B, T, dims.inputs).reshape(B * T, dims.inputs)
         with torch.inference_mode(), one_thread():
             u = self.model.predict(windows, **extras, **options).numpy().astype(np.float64).reshape(B, T, dims.inputs)
         return u[0] if unbatched else u

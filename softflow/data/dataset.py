@@ -1,7 +1,7 @@
 """The polynomial-excitation dataset and its content-hash cache.
 
 The paper trains on 3000 episodes of random polynomial actuation, 5 s each at 0.01 s.
-Episodes are stored whole (u and the 6D tip states); training tuples are views on
+Episodes are stored whole (u and the tip states); training tuples are views on
 them, and the context windows of sequence models are gathered per batch, never copied
 whole. The cache file is named by a content key of everything that made it (the
 profile's data fields, the simulator's numbers and DATA_VERSION), so a change of any

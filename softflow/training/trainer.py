@@ -29,7 +29,7 @@ from softflow.models.checkpoints import (
     model_from_checkpoint,
     save_checkpoint,
 )
-from softflow.models.common import Dims, one_thread
+from softflow.models.common import one_thread
 from softflow.models.registry import build_model, model_spec
 from softflow.profiles import Profile, TrainConfig
 from softflow.rod.dynamics import Simulator
@@ -167,7 +167,7 @@ def _train(
             return model_from_checkpoint(finished, path), finished
 
     torch.manual_seed(config.seed)
-    dims = Dims.of(dataset.u, dataset.states)
+    dims = dataset.dims
     model = build_model(name, dims, **identity["model_kwargs"])
     simulated = dataset.robot is not None  # recorded or synthetic data has no statics
     statics = Simulator(dataset.robot, dataset.gravity).static_table() if model.needs_statics and simulated else None
