@@ -9,6 +9,7 @@ from softflow.lazy import facade
 
 EXPORTS = {
     "rod": ["DT", "HW_ROBOT", "Robot", "SIM_ROBOT", "Simulator", "U_MAX"],
+    "data": ["recordings"],
     "control": ["Controller", "evaluate", "load_controller"],
 }
 SUBMODULES = ["rod", "data", "models", "training", "control", "hardware", "studies", "report"]

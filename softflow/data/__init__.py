@@ -1,5 +1,5 @@
 """Data: excitation families, the simulated datasets and their cache, reference trajectories,
-dataset variants. Imports the rod and the foundation.
+dataset variants, recorded runs (``recordings``). Imports the rod and the foundation.
 """
 
 from softflow.lazy import facade
@@ -45,5 +45,5 @@ EXPORTS = {
     ],
     "variants": ["EXCITATIONS", "HOLD_SECONDS", "Variant", "VARIANTS", "piecewise_excitation", "variant_dataset"],
 }
-SUBMODULES = []
+SUBMODULES = ["recordings"]
 __getattr__, __dir__, __all__ = facade(__name__, EXPORTS, SUBMODULES)
