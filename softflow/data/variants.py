@@ -1,4 +1,4 @@
-"""Dataset variants in which the inverse (x_t, x_t+1) -> u may be many-valued (issue 15): how
+"""Dataset variants in which the inverse (x_t, x_t+1) -> u may be many-valued: how
 the rod is driven (actuation range, damping, excitation) and what a model is shown of its tip
 (observed channels, position noise, finite-difference velocities).
 
@@ -68,7 +68,7 @@ class Variant:
         return X
 
 
-# Fixed before any ran (issue 15): the paper's setting and one variant per way of ambiguity.
+# Fixed before any ran: the paper's setting and one variant per way of ambiguity.
 VARIANTS = {
     v.name: v
     for v in (

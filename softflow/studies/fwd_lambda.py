@@ -15,7 +15,7 @@ from softflow.rod.robots import SIM_ROBOT
 from softflow.studies.study import held_out_plan, trained, unnamed
 from softflow.studies.table1 import table1_references
 
-# Fixed before any ran (issue 15 section 4): lambda in {0, 0.03, 0.1, 0.3, 1} x seeds 0-2 at
+# Fixed before any ran: lambda in {0, 0.03, 0.1, 0.3, 1} x seeds 0-2 at
 # RF-FWD's full paper budget. lambda = 0 is RF and lambda = 1 the shipped RF-FWD: those cells
 # share the table1 study's models (same seeds, same budget), as do the forward surrogates.
 LAMBDA_GRID = {

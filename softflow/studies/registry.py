@@ -6,8 +6,8 @@ table1: Tables I and II with confidence intervals. Every model of the paper at i
     eight shapes and 24 random references (Rand1..Rand4 are the paper's), plus the ILC floor.
 protocol: Table I under each choice the paper leaves open (``protocol``), with the seed-0
     models (no retraining) and the ILC floor; the conditions were fixed before any ran.
-data_size: issue 15's first question, fixed before any ran: is it the prior or being
-    generative that helps? MLP, MLP-Physical, RF and RF-Physical trained on 100 / 300 / 1000 /
+data_size: is it the prior or being generative that helps? Fixed before any ran:
+    MLP, MLP-Physical, RF and RF-Physical trained on 100 / 300 / 1000 /
     3000 episodes, 3 seeds, the same 20 000 optimiser steps each (no early stop), scored on
     Table I's references and per step on the held-out test episodes.
 closed_loop: Table III extended: the twin's RF-FWD open loop and in closed loop (``loop``):
@@ -15,7 +15,7 @@ closed_loop: Table III extended: the twin's RF-FWD open loop and in closed loop 
     learning across repetitions, each also calibrated on an identification run
     (``calibration``); camera latency 0 / 33 / 66 ms and 10 % lost frames; open / calibrated
     open / closed / calibrated closed under each doubled gap term.
-ambiguity: issue 15's inverses that are genuinely ambiguous, fixed before any ran: the MLP
+ambiguity: inverses that are genuinely ambiguous, fixed before any ran: the MLP
     against RF and RF-FWD on each dataset variant (``variants``: a folded workspace, a weakly
     damped rod under piecewise-constant actuation, positions only, finite-difference
     velocities with 0 / 0.5 / 2 mm position noise), per step and open loop.
