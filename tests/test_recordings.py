@@ -122,6 +122,26 @@ def test_a_short_gap_is_bridged_and_a_long_one_refused_by_row_and_column(tmp_pat
     assert recordings.read(path, max_gap=0.6).inputs.shape[0] > 300
 
 
+def test_clock_times_read_like_times_from_zero(tmp_path):
+    """A log stamped with the computer's clock (1.7e9 s) gives the same run, shifted."""
+    path = write_sines(tmp_path / "run.csv", np.random.default_rng(5))
+    table = pd.read_csv(path)
+    table["time_s"] += 1.7e9
+    table.to_csv(tmp_path / "clock.csv", index=False)
+    run, clock = recordings.read(path), recordings.read(tmp_path / "clock.csv")
+    np.testing.assert_allclose(clock.times - 1.7e9, run.times, atol=1e-6)
+    np.testing.assert_allclose(clock.states, run.states, atol=1e-6)
+
+
+@pytest.mark.parametrize(
+    "options, message",
+    [({"dt": -0.01}, "dt must be"), ({"max_gap": 0}, "max_gap must be"), ({"jerk": "high"}, "jerk must be")],
+)
+def test_options_are_checked(tmp_path, options, message):
+    with pytest.raises(ValueError, match=message):
+        recordings.read(write_sines(tmp_path / "run.csv", np.random.default_rng(0)), **options)
+
+
 # ---------------------------------------------------------------------------- bad files
 def good_table() -> pd.DataFrame:
     """One second of commands and frames on the same rows."""
@@ -275,6 +295,8 @@ def test_the_mlp_trains_on_recordings(folder, tmp_path):
 
 def test_episodes_cover_every_step_and_overlap_only_at_a_remainder():
     assert recordings.episodes([10, 7], 5) == [(0, 0), (0, 5), (1, 0), (1, 2)]
+    with pytest.raises(ValueError, match="n_steps must be"):
+        recordings.episodes([10, 7], 8)
 
 
 def test_a_3d_tip_and_a_chosen_episode_length(tmp_path):

@@ -27,7 +27,7 @@ import numpy as np
 import pandas as pd
 
 from softflow.data.dataset import Dataset, split_episodes
-from softflow.data.smoothing import smooth
+from softflow.data.smoothing import check_levels, smooth
 from softflow.store import DATA_DIR, cache_file, cached_arrays, content_key
 
 RECORDINGS_VERSION = 1  # bump when the resampling, the smoother, the episodes or the split change
@@ -55,10 +55,10 @@ class Recording:
     jerk: np.ndarray
 
     def __post_init__(self):
-        T, k = len(self.inputs), len(self.tip_columns)
-        if self.times.shape != (T + 1,) or self.states.shape != (T + 1, 2 * k):
+        T, m, k = len(self.inputs), len(self.input_columns), len(self.tip_columns)
+        if self.inputs.shape != (T, m) or self.times.shape != (T + 1,) or self.states.shape != (T + 1, 2 * k):
             raise ValueError(
-                f"need times (T+1,), inputs (T, m) and states (T+1, 2k) for k = {k} tip columns; got "
+                f"need times (T+1,), inputs (T, m) and states (T+1, 2k) for m = {m} input and k = {k} tip columns; got "
                 f"{self.times.shape}, {self.inputs.shape} and {self.states.shape}"
             )
 
@@ -66,8 +66,7 @@ class Recording:
 @dataclass(frozen=True)
 class _Table:
     """The checked columns of one file: times (R,), inputs (R, m) with NaN rows where no command
-    was given, tip (R, k) with NaN where no frame was taken, and the commands' median period (s):
-    robust to jitter and to a few lost commands."""
+    was given, tip (R, k) with NaN where no frame was taken, and the commands' period (s)."""
 
     source: str
     times: np.ndarray
@@ -161,7 +160,9 @@ def _table(source: str, content: bytes, inputs=None, tip=None) -> _Table:
     for i, name in enumerate(tip_columns):
         frames = np.flatnonzero(np.isfinite(p[:, i]))
         if len(frames) == 0:
-            raise ValueError(f"{source}: column {name!r}: no tip position at all (every row empty)")
+            raise ValueError(
+                f"{source}: column {name!r}: no tip position at all (every row empty; name the measured with tip=)"
+            )
         if len(frames) == 1:
             raise ValueError(f"{source}: column {name!r}: fewer than two frames (only row {frames[0]})")
     u = np.stack([_numbers(frame, name, source) for name in input_columns], -1)  # (R, m)
@@ -176,9 +177,11 @@ def _table(source: str, content: bytes, inputs=None, tip=None) -> _Table:
     commands = times[given.all(1)]
     if len(commands) < 2:
         raise ValueError(f"{source}: fewer than two commands (rows with every one of {list(input_columns)} set)")
-    period = float(np.median(np.diff(commands)))
-    if not period > 0:
+    median = float(np.median(np.diff(commands)))
+    if not median > 0:
         raise ValueError(f"{source}: column {TIME!r}: the commands' median interval is 0 s (most share a time)")
+    span = commands[-1] - commands[0]
+    period = span / round(span / median)  # the median (robust to jitter and lost commands), refined over the span
     return _Table(source, times, u, p, input_columns, tip_columns, period)
 
 
@@ -237,11 +240,12 @@ def _resample(table: _Table, dt: float, max_gap: float, noise, jerk) -> Recordin
     )
 
 
-def _check_options(dt, max_gap) -> None:
+def _check_options(dt, max_gap, noise, jerk) -> None:
     if dt is not None and not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
         raise ValueError(f"dt must be None (the commands' period) or a positive period in s; got {dt!r}")
     if not (isinstance(max_gap, (int, float)) and math.isfinite(max_gap) and max_gap > 0):
         raise ValueError(f"max_gap must be a positive duration in s; got {max_gap!r}")
+    check_levels(noise, jerk)
 
 
 def read(path, *, inputs=None, tip=None, dt=None, max_gap: float = MAX_GAP, noise=None, jerk=None) -> Recording:
@@ -250,7 +254,7 @@ def read(path, *, inputs=None, tip=None, dt=None, max_gap: float = MAX_GAP, nois
     starting with ``u``; those of x_m, y_m, z_m present). ``noise`` (m) and ``jerk``
     (m/s^3/sqrt(Hz)) fix the smoother's levels; by default each tip column's are fitted. A bad
     file is a ValueError naming it, and the row and column where there is one."""
-    _check_options(dt, max_gap)
+    _check_options(dt, max_gap, noise, jerk)
     path = Path(path)
     try:
         content = path.read_bytes()
@@ -281,6 +285,10 @@ def episodes(lengths, n_steps: int) -> list[tuple[int, int]]:
     """(recording, first step) of each episode of ``n_steps`` cut from recordings of ``lengths``
     steps: consecutive, and where a remainder is left one more that ends with the recording
     (overlapping the one before), so every recorded step is used and none is made up."""
+    if not (isinstance(n_steps, int) and 1 <= n_steps <= min(lengths, default=0)):
+        raise ValueError(
+            f"n_steps must be an integer from 1 to the shortest length {min(lengths, default=0)}; got {n_steps!r}"
+        )
     cuts = []
     for index, length in enumerate(lengths):
         starts = list(range(0, length - n_steps + 1, n_steps))
@@ -312,7 +320,7 @@ def load_dataset(
     recordings, with ``fractions`` and ``seed``): every episode of a run lands in the same split.
     The result is cached under ``data_dir`` (None: not cached) by the files' contents and these
     options, written atomically after every file was read, so a bad file leaves no cache."""
-    _check_options(dt, max_gap)
+    _check_options(dt, max_gap, noise, jerk)
     if episode_seconds is not None and not (
         isinstance(episode_seconds, (int, float)) and math.isfinite(episode_seconds) and episode_seconds > 0
     ):

@@ -22,6 +22,7 @@ NOISE_GRID = np.logspace(-6, -1, 11)  # m: candidate frame noise (1 um .. 10 cm)
 JERK_GRID = np.logspace(-4, 6, 21)  # m/s^3/sqrt(Hz): candidate white-jerk densities, half-decade steps
 PRIOR_SPEED, PRIOR_ACCELERATION = 1.0, 100.0  # m/s, m/s^2: spread of the state at the first frame
 MIN_FIT_FRAMES = 10  # frames needed to fit the two levels (the first three only fix p, v, a)
+TIME_TOLERANCE = 1e-6  # s: how far a query may lie outside the frames (rounding of a grid, not extrapolation)
 
 
 def transition(h) -> tuple[np.ndarray, np.ndarray]:
@@ -68,7 +69,14 @@ def _filter(times, values, noise, jerk, *, keep: bool = False):
     return loglik, stored
 
 
-def fit_levels(times, values, *, noise: float | None = None, jerk: float | None = None) -> tuple[float, float]:
+def check_levels(noise, jerk) -> None:
+    """The smoother's levels are positive numbers, or None to fit them."""
+    for name, level in (("noise", noise), ("jerk", jerk)):
+        if level is not None and not (isinstance(level, (int, float)) and math.isfinite(level) and level > 0):
+            raise ValueError(f"{name} must be a positive number or None (fitted); got {level!r}")
+
+
+def _fit_levels(times, values, *, noise: float | None = None, jerk: float | None = None) -> tuple[float, float]:
     """The (frame noise, jerk density) of the grids that make one axis's frames (N,) at times
     (N,) most likely; a given level is kept and only the other fitted."""
     noises = NOISE_GRID if noise is None else np.array([noise], float)
@@ -93,14 +101,13 @@ def smooth(times, values, query, *, noise: float | None = None, jerk: float | No
     query, _ = as_real_array(query, "query", (None,))
     if len(times) < 2 or np.any(np.diff(times) < 0):
         raise ValueError(f"need at least two frames at nondecreasing times; got times {times[:5]}...")
-    if len(query) and (query.min() < times[0] or query.max() > times[-1]):
+    if len(query) and (query.min() < times[0] - TIME_TOLERANCE or query.max() > times[-1] + TIME_TOLERANCE):
         raise ValueError(
             f"query times must lie within the frames' [{times[0]}, {times[-1]}] s; got [{query.min()}, {query.max()}]"
         )
-    for name, level in (("noise", noise), ("jerk", jerk)):
-        if level is not None and not (isinstance(level, (int, float)) and math.isfinite(level) and level > 0):
-            raise ValueError(f"{name} must be a positive number or None (fitted); got {level!r}")
-    noise, jerk = fit_levels(times, values, noise=noise, jerk=jerk)
+    check_levels(noise, jerk)
+    noise, jerk = _fit_levels(times, values, noise=noise, jerk=jerk)
+    query = np.clip(query, times[0], times[-1])  # the timeline starts at a frame
 
     merged_times = np.concatenate([times, query])
     order = np.argsort(merged_times, kind="stable")  # a frame before a query at the same time
