@@ -1,12 +1,17 @@
-"""`python -m softflow ...`: the notebooks' long steps without Jupyter.
+"""`softflow VERB ...` (or `python -m softflow VERB ...`): the notebooks' steps without Jupyter.
 
-  python -m softflow data  --profile paper              generate (or verify) the dataset
-  python -m softflow train --profile paper mlp rf-fwd   train models into their checkpoints
-  python -m softflow train --robot hw --gravity horizontal rf-fwd   a hardware-twin model
-  python -m softflow train --profile paper --ship rf-fwd   retrain a shipped model into checkpoints/
-  python -m softflow sweep table1 --profile paper [--scheduler-file F]   a study's cells as Dask tasks (docs/sweeps.md)
+  softflow data --profile paper                        generate (or verify) the dataset
+  softflow train --profile paper mlp rf-fwd            train models; the last lines are their checkpoints
+  softflow train --robot hw --gravity horizontal rf-fwd   a hardware-twin model
+  softflow train --ship rf-fwd                         retrain a shipped model into checkpoints/ (maintainers)
+  softflow sweep table1 --profile paper                a study's cells as Dask tasks (docs/sweeps.md)
+  softflow models [--cards]                            the shipped checkpoints (and their model cards)
+  softflow plan rf-fwd --shape circle --out u.csv      planned inputs for a shape, one row per sample
+  softflow evaluate rf-fwd [--references random]       open-loop tracking RMSE in the simulator
+  softflow export rf-fwd --shape star --out star.csv   motor commands for the hardware-twin rod
 
-Trained models go to data/checkpoints/ (git-ignored); only --ship writes checkpoints/.
+`softflow VERB --help` describes a verb. Trained models go to data/checkpoints/ (git-ignored);
+only train --ship writes checkpoints/.
 """
 
 from __future__ import annotations
@@ -14,78 +19,191 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from pathlib import Path
 
-from softflow import data, training
-from softflow.models.registry import MODELS
+import numpy as np
+import pandas as pd
+
+from softflow import control, data, hardware, training
+from softflow.models.checkpoints import checkpoint_path
+from softflow.models.registry import CONTROLLERS, MODELS
 from softflow.profiles import PROFILES, get_profile
-from softflow.rod.robots import ROBOTS
+from softflow.report import model_cards, tables
+from softflow.rod.dynamics import GRAVITY_DIRECTIONS, Simulator
+from softflow.rod.robots import HW_ROBOT, ROBOTS, SIM_ROBOT, rod_folder
+from softflow.store import write_text
+from softflow.studies import sweep
+
+# The rod's references for `evaluate`: the sim rod's are Table I's (8 shapes, Rand1..Rand4), the
+# hardware rod's Table III's shapes (5 cm about its rest tip) and Rand1..Rand4 run on it.
+REFERENCES = {"table1": ("shape", "random"), "shapes": ("shape",), "random": ("random",)}
 
 
 def main(argv=None):
-    argv = sys.argv[1:] if argv is None else list(argv)
-    if argv[:1] == ["sweep"]:
-        return _sweep(argv[1:])
+    """Run one verb. Bad input (a ValueError, which says what was expected) exits 2 with its
+    message, as a bad argument does."""
+    args = build_parser().parse_args(sys.argv[1:] if argv is None else list(argv))
+    try:
+        args.run(args)
+    except ValueError as error:
+        args.parser.error(str(error))
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The parser of every verb (built per call: a test may register a study)."""
     parser = argparse.ArgumentParser(
-        prog="python -m softflow", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+        prog="softflow", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    parser.add_argument("command", choices=["data", "train"])
-    parser.add_argument("models", nargs="*", metavar="model", help=f"models to train: {', '.join(sorted(MODELS))}")
-    parser.add_argument("--profile", default="paper", choices=sorted(PROFILES))
-    parser.add_argument("--robot", default="sim", choices=sorted(ROBOTS))
-    parser.add_argument("--gravity", default="vertical", choices=["vertical", "horizontal"])
-    parser.add_argument(
+    verbs = parser.add_subparsers(title="verbs", dest="verb", required=True, metavar="VERB")
+
+    def verb(name, run, summary, description=None):
+        sub = verbs.add_parser(
+            name,
+            help=summary,
+            description=description or summary,
+            formatter_class=argparse.RawDescriptionHelpFormatter,
+        )
+        sub.set_defaults(run=run, parser=sub)
+        return sub
+
+    sub = verb("data", _data, "generate (or verify) a profile's dataset; its path is the last line")
+    _rod_options(sub)
+
+    sub = verb(
+        "train",
+        _train,
+        "train models (or reuse a current checkpoint); the checkpoint paths are the last lines",
+    )
+    sub.add_argument("models", nargs="+", metavar="MODEL", choices=sorted(MODELS), help=", ".join(sorted(MODELS)))
+    _rod_options(sub)
+    sub.add_argument(
         "--ship",
         action="store_true",
-        help="write the paper-profile checkpoints committed in checkpoints/ (maintainers only)",
+        help="write the paper-profile checkpoints committed in checkpoints/ and their model cards (maintainers)",
     )
-    args = parser.parse_intermixed_args(argv)
-    unknown = sorted(set(args.models) - set(MODELS))
-    if unknown:
-        parser.error(f"unknown model(s) {unknown}; choose from {sorted(MODELS)}")
-    profile = get_profile(args.profile)
-    start = time.perf_counter()
-    robot = ROBOTS[args.robot]
-    dataset = data.load_dataset(profile, robot, args.gravity)
-    print(f"dataset {dataset.key}: {dataset.u.shape[0]} episodes ({time.perf_counter() - start:.0f} s)")
-    if args.command == "train":
-        for name in args.models:
-            _, checkpoint = training.ensure_trained(
-                name, profile, dataset, robot, args.gravity, ship=args.ship, progress=True
-            )
-            print(
-                f"{name}: {checkpoint['epochs_run']} epochs, best validation loss {checkpoint['best_val']:.4f}, "
-                f"{checkpoint['wall_seconds'] / 60:.1f} min of training"
-            )
 
-
-def _sweep(argv):
-    """The sweep subcommand; the CSV path is the last line of stdout, exit status 1 if a cell failed."""
-    from softflow.studies import sweep
-
-    parser = argparse.ArgumentParser(
-        prog="python -m softflow sweep", description=sweep.__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    parser.add_argument("study", choices=sorted(sweep.STUDIES))
-    parser.add_argument("--profile", required=True, choices=sorted(PROFILES))
-    cluster = parser.add_mutually_exclusive_group()
+    sub = verb("sweep", _sweep, "run a study's cells as Dask tasks; the result CSV is the last line", sweep.__doc__)
+    sub.add_argument("study", choices=sorted(sweep.STUDIES))
+    sub.add_argument("--profile", required=True, choices=sorted(PROFILES))
+    cluster = sub.add_mutually_exclusive_group()
     cluster.add_argument("--scheduler-file", help="run on the cluster whose scheduler wrote this file")
     cluster.add_argument("--scheduler", metavar="ADDRESS", help="run on the cluster at this address (tcp://host:8786)")
-    parser.add_argument("--workers", type=int, help="worker processes of the local cluster (default: one per core)")
-    parser.add_argument("--device", default="auto", choices=sweep.DEVICES, help="auto: CUDA, else MPS, else CPU")
-    parser.add_argument(
+    sub.add_argument("--workers", type=int, help="worker processes of the local cluster (default: one per core)")
+    sub.add_argument("--device", default="auto", choices=sweep.DEVICES, help="auto: CUDA, else MPS, else CPU")
+    sub.add_argument(
         "--recompute",
         action="store_true",
         help="recompute the cells whose rows ship in figures/sweeps/ (cached rows in data/sweeps/ still count)",
     )
-    args = parser.parse_args(argv)
-    start = time.perf_counter()
+
+    sub = verb("models", _models, "list the shipped checkpoints: rod, data, budget, Table I row", model_cards.__doc__)
+    sub.add_argument("--cards", action="store_true", help="print every model card: the text of checkpoints/README.md")
+
+    sub = verb(
+        "plan",
+        _plan,
+        "plan a shape open loop: a CSV of time_s and one column per input (u1_N, ...), one row per sample",
+    )
+    _model_options(sub)
+    _shape_options(sub)
+
+    sub = verb(
+        "evaluate",
+        _evaluate,
+        "plan references, run the plans open loop in the simulator, print the RMSE per reference and family",
+    )
+    _model_options(sub)
+    sub.add_argument(
+        "--references",
+        default="table1",
+        choices=list(REFERENCES),
+        help="table1 (default): shapes and random; shapes: Table I's eight (hw rod: Table III's four); "
+        "random: Rand1..Rand4, held-out sum-of-sines actuation run through the rod",
+    )
+
+    sub = verb(
+        "export",
+        _export,
+        "motor commands for a planned shape: a CSV time_s,l1_mm,... (docs/real_robot.md), hardware rod by default",
+    )
+    _model_options(sub, robot=HW_ROBOT.name)
+    _shape_options(sub)
+    return parser
+
+
+def _rod_options(sub, robot: str = SIM_ROBOT.name):
+    sub.add_argument("--profile", default="paper", choices=sorted(PROFILES), help="run size (default: paper)")
+    sub.add_argument("--robot", default=robot, choices=sorted(ROBOTS), help=f"the rod (default: {robot})")
+    sub.add_argument(
+        "--gravity", default="vertical", choices=list(GRAVITY_DIRECTIONS), help="configuration (default: vertical)"
+    )
+
+
+def _model_options(sub, robot: str = SIM_ROBOT.name):
+    sub.add_argument("model", metavar="MODEL", choices=CONTROLLERS, help=", ".join(CONTROLLERS))
+    _rod_options(sub, robot)
+
+
+def _shape_options(sub):
+    sub.add_argument("--shape", required=True, choices=sorted(data.SHAPES), help="the y-z shape to trace")
+    sub.add_argument(
+        "--size",
+        type=_positive,
+        help=f"half-extent in m, about the rest tip (default: {data.HARDWARE_SIZE:g} for hw, else {data.SIZE:g})",
+    )
+    sub.add_argument("--out", type=Path, required=True, metavar="FILE.csv", help="the CSV to write (replaced)")
+
+
+def _positive(text: str) -> float:
     try:
-        with sweep.connect(args.scheduler_file, args.scheduler, args.workers) as client:
-            result = sweep.run_sweep(
-                args.study, args.profile, client=client, device=args.device, shipped=not args.recompute
-            )
-    except ValueError as error:
-        parser.error(str(error))
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"expected a positive number of metres; got {text!r}")
+    return value
+
+
+def _data(args):
+    start = time.perf_counter()
+    profile, robot = get_profile(args.profile), ROBOTS[args.robot]
+    dataset = data.load_dataset(profile, robot, args.gravity)
+    print(f"dataset {dataset.key}: {dataset.u.shape[0]} episodes ({time.perf_counter() - start:.0f} s)")
+    print(data.dataset_path(profile, robot, args.gravity))
+
+
+def _train(args):
+    """Each model trained (or its current checkpoint reused); the last lines are the checkpoints
+    ``load_controller`` now picks, one per model in order."""
+    if args.ship and args.profile != "paper":
+        raise ValueError(f"--ship writes the paper profile's checkpoints; got --profile {args.profile}")
+    profile, robot = get_profile(args.profile), ROBOTS[args.robot]
+    dataset = data.DatasetOnDemand(profile, robot, args.gravity)  # simulated only if a model must be trained
+    paths = []
+    for name in args.models:
+        _, checkpoint = training.ensure_trained(
+            name, profile, dataset, robot, args.gravity, ship=args.ship, progress=True
+        )
+        print(
+            f"{name}: {checkpoint['epochs_run']} epochs, best validation loss {checkpoint['best_val']:.4f}, "
+            f"{checkpoint['wall_seconds'] / 60:.1f} min of training"
+        )
+        if args.ship:
+            paths.append(checkpoint_path(name, profile.name, rod_folder(robot, args.gravity), shipped=True))
+        else:
+            paths.append(control.find_trained(name, profile.name, robot, args.gravity)[0])
+    if args.ship:
+        write_text(model_cards.README, model_cards.model_cards())
+    print("\n".join(map(str, paths)))
+
+
+def _sweep(args):
+    """The CSV path is the last line of stdout; exit status 1 if a cell failed."""
+    start = time.perf_counter()
+    with sweep.connect(args.scheduler_file, args.scheduler, args.workers) as client:
+        result = sweep.run_sweep(
+            args.study, args.profile, client=client, device=args.device, shipped=not args.recompute
+        )
     for failure in result.failures:
         print(f"cell {failure.cell} failed: {failure.error}", file=sys.stderr)
     computed = result.computed - len(result.failures)
@@ -96,6 +214,89 @@ def _sweep(argv):
     print(result.csv)
     if result.failures:
         raise SystemExit(1)
+
+
+def _models(args):
+    if args.cards:
+        print(model_cards.model_cards(), end="")
+    else:
+        print(tables.markdown(model_cards.model_table(model_cards.shipped_models())))
+
+
+def _controller(args):
+    """The controller and simulator of the verb's model and rod."""
+    robot = ROBOTS[args.robot]
+    return control.load_controller(args.model, args.profile, robot, args.gravity), Simulator(robot, args.gravity)
+
+
+def shape_reference(sim: Simulator, shape: str, size: float | None) -> data.Reference:
+    """The named shape of half-extent ``size`` (m; None: the rod's default) about the rod's rest
+    tip (the horizontal rod sags), cached like every reference."""
+    size = (data.HARDWARE_SIZE if sim.robot == HW_ROBOT else data.SIZE) if size is None else size
+
+    def about_rest_tip(sim):
+        centre = sim.tip_positions(sim.rest_q()[None])[0, 1:]  # (2,) rest tip y, z
+        return [data.shape_reference(sim, shape, size, centre=centre)]
+
+    return data.cached_references(sim, f"shape-{shape}-{size!r}", about_rest_tip)[0]
+
+
+def reference_set(sim: Simulator, which: str) -> list:
+    """The references ``evaluate --references which`` scores on this rod (``REFERENCES``)."""
+    families = REFERENCES[which]
+    if sim.robot == HW_ROBOT:
+        made = {
+            "shape": lambda: [r for r in data.hardware_references(sim) if r.family == "shape"],
+            "random": lambda: data.cached_references(sim, "random", data.random_references),
+        }
+        return [r for family in families for r in made[family]()]
+    return [r for r in data.evaluation_references(sim) if r.family in families]
+
+
+def _planned_shape(args):
+    """(simulator, reference, plan (T, m)) of a shape verb."""
+    if args.out.is_dir():
+        raise ValueError(f"--out {args.out} is a directory; expected a file to write")
+    controller, sim = _controller(args)
+    reference = shape_reference(sim, args.shape, args.size)
+    return sim, reference, controller.plan(reference.states)
+
+
+def _plan(args):
+    sim, reference, u = _planned_shape(args)
+    frame = pd.DataFrame(u, columns=[f"u{i + 1}_N" for i in range(u.shape[1])])
+    frame.insert(0, "time_s", np.arange(len(u)) * sim.dt)
+    write_text(args.out, frame.to_csv(index=False, float_format="%.6f"))
+    print(f"{args.model}: {len(u)} samples of {u.shape[1]} inputs for {reference.name} ({args.robot}, {args.gravity})")
+    print(args.out)
+
+
+def _export(args):
+    sim, reference, u = _planned_shape(args)
+    commands = hardware.cable_commands(u[None], sim)[0]  # (T, C) m
+    hardware.write_commands(args.out, commands, sim.dt)
+    print(f"{args.model}: {len(commands)} commands for {commands.shape[1]} motors, {reference.name} ({args.robot})")
+    print(args.out)
+
+
+def _evaluate(args):
+    controller, sim = _controller(args)
+    references = reference_set(sim, args.references)
+    results, _ = control.evaluate(controller, references, sim)
+    means = results.groupby("family", sort=False).rmse_mm.mean().reset_index().assign(reference="mean")
+    table = pd.concat([results[["reference", "family", "rmse_mm"]], means[["reference", "family", "rmse_mm"]]])
+    print(
+        f"{args.model} ({args.profile} profile, {args.robot} rod, {args.gravity}): open-loop tracking RMSE (mm), "
+        f"{len(references)} references"
+    )
+    print(table.to_string(index=False, float_format="%.2f"))
+    paper_rod = (args.robot, args.gravity, args.profile) == (SIM_ROBOT.name, "vertical", "paper")
+    if paper_rod and args.references == "table1" and args.model in tables.MODELS:
+        row = tables.table1(get_profile("paper")).loc[args.model]
+        print(
+            f"Table I (figures/table1_tracking.csv): shape {row[('shape_mm', 'ours')]:.2f}, "
+            f"random {row[('random_mm', 'ours')]:.2f}"
+        )
 
 
 if __name__ == "__main__":
