@@ -197,13 +197,14 @@ def _held_means(table: _Table, grid: np.ndarray) -> np.ndarray:
 
 
 def _resample(table: _Table, dt: float, max_gap: float, noise, jerk) -> Recording:
+    """The table on its grid of period dt: held commands averaged, tip smoothed, long gaps refused."""
     source, times, tip = table.source, table.times, table.tip
     commands = times[table.commands]
     frames = [np.flatnonzero(np.isfinite(column)) for column in tip.T]  # rows with a frame, per column
     start = max(times[rows[0]] for rows in frames)
     end = min(min(times[rows[-1]] for rows in frames), commands[-1] + table.command_period)
     first = np.searchsorted(commands, start)
-    n_steps = int(math.floor((end - commands[first]) / dt + 1e-9)) if first < len(commands) else 0
+    n_steps = math.floor((end - commands[first]) / dt + 1e-9) if first < len(commands) else 0
     if n_steps < 1:
         raise ValueError(
             f"{source}: the commands and the frames of every tip column overlap for less than one step of {dt} s"
@@ -218,8 +219,8 @@ def _resample(table: _Table, dt: float, max_gap: float, noise, jerk) -> Recordin
                 f"{source}: rows {a}-{b}, column {name!r}: {times[b] - times[a]:.3f} s between frames "
                 f"({times[a]} to {times[b]} s), longer than max_gap = {max_gap} s; cut the file there"
             )
-    states, levels = np.empty((n_steps + 1, 2 * len(frames))), []  # (T+1, 2k)
     k = len(frames)
+    states, levels = np.empty((n_steps + 1, 2 * k)), []  # (T+1, 2k)
     for i, rows in enumerate(frames):
         try:
             states[:, i], states[:, k + i], *level = smooth(times[rows], tip[rows, i], grid, noise=noise, jerk=jerk)
@@ -250,7 +251,7 @@ def _check_options(dt, max_gap, noise, jerk) -> None:
 
 def read(path, *, inputs=None, tip=None, dt=None, max_gap: float = MAX_GAP, noise=None, jerk=None) -> Recording:
     """One recorded run (a CSV or Parquet file) on a regular grid of period ``dt`` (s; default:
-    the commands' median period). ``inputs`` and ``tip`` name the columns (default: those
+    the commands' period). ``inputs`` and ``tip`` name the columns (default: those
     starting with ``u``; those of x_m, y_m, z_m present). ``noise`` (m) and ``jerk``
     (m/s^3/sqrt(Hz)) fix the smoother's levels; by default each tip column's are fitted. A bad
     file is a ValueError naming it, and the row and column where there is one."""
