@@ -16,6 +16,7 @@ from softflow.models.baselines import InverseMLP, LeanMLP
 from softflow.models.checkpoints import find_checkpoint, identity, load_checkpoint, model_from_checkpoint
 from softflow.models.common import one_thread
 from softflow.models.flow import LeanFlow, RectifiedFlow
+from softflow.models.registry import CONTROLLERS
 from softflow.profiles import get_profile
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import DT, SIM_ROBOT, U_MAX, Robot, rod_folder
@@ -44,9 +45,10 @@ class Controller:
     are clipped to. ``observe``: what the model was shown of a tip path, applied to every
     reference ``plan`` and ``sample`` get (e.g. ``variants.Variant.observe``: velocities
     hidden, or by finite differences, which need the path); None: the full state. ``step``
-    takes its two states as the model sees them. ``workspace_margin``: references farther
-    than this many training standard deviations are refused (``check_workspace``); None
-    plans anything, for studies that measure extrapolation on purpose."""
+    takes its two states as the model sees them. ``workspace_margin``: references, and
+    states given to ``step``, farther than this many training standard deviations are
+    refused (``check_workspace``); None plans anything, for studies that measure
+    extrapolation on purpose."""
 
     def __init__(
         self,
@@ -62,9 +64,9 @@ class Controller:
     ):
         if not u_limit > 0:
             raise ValueError(f"u_limit must be a positive actuator range in N; got {u_limit!r}")
-        if workspace_margin is not None and not workspace_margin > 0:
-            raise ValueError(f"workspace_margin must be positive or None; got {workspace_margin!r}")
         self.model, self.name, self.seed, self.robot, self.gravity = model.eval(), name, seed, robot, gravity
+        norm, p = model.state_norm, model.dims.position
+        self._mean, self._std = (b.numpy()[:p].astype(np.float64) for b in (norm.mean, norm.std))  # tip position
         self.u_limit, self.observe, self.workspace_margin = float(u_limit), observe, workspace_margin
         self.generative = isinstance(model, RectifiedFlow)
         self.statics = Simulator(robot, gravity).static_table() if model.needs_statics else None
@@ -75,8 +77,9 @@ class Controller:
         real-time path (plain numpy, no autograd), the same u as ``plan`` to about 1e-5 N.
         A flow starts from z = 0, as ``plan`` does. u beyond the actuator range is clipped,
         with a ``SaturationWarning`` (``clip=False``: returned as the model gives it, for a
-        loop that adds its own correction first). Models that read a window of past states
-        (LSTM, Transformer) have no step: ``plan`` them."""
+        loop that adds its own correction first). A state outside the workspace is refused, as
+        ``plan`` refuses a reference: a units slip must not command full actuation. Models that
+        read a window of past states (LSTM, Transformer) have no step: ``plan`` them."""
         if self.lean is None:
             raise ValueError(
                 f"{self.name} reads a window of {self.model.context} past transitions: it has no "
@@ -86,6 +89,9 @@ class Controller:
         x, unbatched = as_real_array(x_t, "x_t", (None, dims.state), allow_unbatched=True)
         x_next, _ = as_real_array(x_next, "x_next", x.shape[1:] if unbatched else x.shape)
         window = np.stack([x, x_next[None] if unbatched else x_next], 1)
+        if self._outside(window):  # rare: name the state that is out
+            for j, name in enumerate(("x_t", "x_next")):
+                self.check_workspace(window[0, j] if unbatched else window[:, j], name)
         prior = self.statics.inverse(window[:, 1, : dims.position]) if self.statics is not None else None
         u = (
             self.lean.predict(window, np.zeros((len(window), dims.inputs)), prior)
@@ -161,22 +167,41 @@ class Controller:
         if steps is not None and not (isinstance(steps, (int, np.integer)) and steps >= 1):
             raise ValueError(f"steps must be a positive integer; got {steps!r}")
 
-    def check_workspace(self, X):
-        """Refuse references far outside the training states (unit mistakes, another rod)."""
-        if self.workspace_margin is None:
+    @property
+    def workspace_margin(self) -> float | None:
+        return self._margin
+
+    @workspace_margin.setter
+    def workspace_margin(self, margin: float | None):
+        """The margin, and the tip-position bounds it sets, computed here once so that a step's
+        check is one vectorised compare."""
+        if margin is not None and not margin > 0:
+            raise ValueError(f"workspace_margin must be positive or None; got {margin!r}")
+        self._margin = margin
+        if margin is not None:
+            self._low, self._high = self._mean - margin * self._std, self._mean + margin * self._std
+
+    def _outside(self, X) -> bool:
+        """Whether a tip position of states X (..., d) lies beyond the workspace margin."""
+        if self._margin is None:
+            return False
+        positions = X[..., : len(self._mean)]
+        return bool(((positions < self._low) | (positions > self._high)).any())
+
+    def check_workspace(self, X, name: str = "reference"):
+        """Refuse states X (..., d) far outside the training states (unit mistakes, another rod);
+        ``name`` says in the message what X is."""
+        if not self._outside(X):
             return
-        mean, std = (b.numpy().astype(np.float64) for b in (self.model.state_norm.mean, self.model.state_norm.std))
-        p = self.model.dims.position
-        score = np.abs(X[..., :p] - mean[:p]) / std[:p]
-        worst = np.unravel_index(np.argmax(score), score.shape)
-        if score[worst] > self.workspace_margin:
-            *where, axis = worst
-            raise ValueError(
-                f"reference tip position {'xyz'[axis] if p <= 3 else axis} = {X[(*where, axis)]:.4g} m at index "
-                f"{tuple(int(i) for i in where)} is {score[worst]:.0f} training standard deviations from "
-                f"the training mean {mean[axis]:.3f} m (at most {self.workspace_margin:g}): is it in "
-                f"metres, and for the rod this model was trained on?"
-            )
+        p = len(self._mean)
+        score = np.abs(X[..., :p] - self._mean) / self._std
+        *where, axis = worst = np.unravel_index(np.argmax(score), score.shape)
+        at = f" at index {tuple(int(i) for i in where)}" if where else ""
+        raise ValueError(
+            f"{name} tip position {'xyz'[axis] if p <= 3 else axis} = {X[worst]:.4g} m{at} is "
+            f"{score[worst]:.0f} training standard deviations from the training mean {self._mean[axis]:.3f} m "
+            f"(at most {self._margin:g}): is it in metres, and for the rod this model was trained on?"
+        )
 
     def _plan(self, reference, noise, seed, options) -> np.ndarray:
         self._check_options(noise, options)
@@ -228,6 +253,12 @@ def load_controller(
     and configuration it was trained on; paper-profile weights ship with the repository, so
     this works right after a clone. A model you trained yourself (data/checkpoints/) is
     preferred when it is current; a stale one is used with a warning."""
+    if name == "forward":
+        raise ValueError(
+            '"forward" is the forward-dynamics surrogate used by RF-FWD, not a controller; '
+            f"load one of {list(CONTROLLERS)}"
+        )
+    check_choice(name, "controller", CONTROLLERS)
     path, current = find_trained(name, profile, robot, gravity)
     if path is None:
         raise ValueError(

