@@ -8,7 +8,9 @@ import warnings
 import numpy as np
 import pytest
 
-from softflow import control
+from softflow import control, data
+from softflow.control import metrics
+from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import HW_ROBOT, SIM_ROBOT, U_MAX
 
 REST = np.array([SIM_ROBOT.length, 0.0, 0.0, 0.0, 0.0, 0.0])  # the simulation rod hanging straight, at rest
@@ -60,3 +62,32 @@ def test_load_controller_refuses_the_forward_surrogate_and_lists_the_controllers
         control.load_controller("forward")
     with pytest.raises(ValueError, match=r"controller must be one of \['mlp', .*\]; got 'rf_fwd'"):
         control.load_controller("rf_fwd")
+
+
+IN_MILLIMETRES = {
+    "shape": lambda sim: data.shape_reference(sim, "circle", size=120),
+    "burst": lambda sim: data.burst_circle_reference(sim, radius=150),
+}
+
+
+@pytest.mark.parametrize("make", IN_MILLIMETRES.values(), ids=IN_MILLIMETRES)
+def test_a_path_in_millimetres_is_refused_with_the_rods_reach(make):
+    with pytest.raises(
+        ValueError,
+        match=r"reaches 1[25]0 m from the rod's axis, farther than the rod is long \(0.4 m\): size, radius and centre "
+        r"are in metres. At \|u\| <= 4 N this rod's tip reaches at most 0.2\d\d m from its rest position",
+    ):
+        make(Simulator(SIM_ROBOT))
+
+
+@pytest.mark.parametrize("dt", [-0.01, 0.0, float("nan"), float("inf"), "0.01"])
+def test_metrics_need_a_positive_finite_sample_period(dt):
+    signal = np.sin(np.linspace(0, 10, 200))
+    expected = rf"dt must be a finite sample period > 0 s; got {dt!r}".replace("(", r"\(").replace(")", r"\)")
+    for call in (
+        lambda: metrics.phase_lag(signal, signal, dt),
+        lambda: metrics.input_energy(np.ones((10, 2)), dt),
+        lambda: metrics.fitting_lag(200, dt),
+    ):
+        with pytest.raises(ValueError, match=expected):
+            call()

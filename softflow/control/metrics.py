@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+import numbers
 import time
 
 import numpy as np
@@ -48,6 +50,13 @@ def _scored(mask, n: int) -> np.ndarray:
     return mask
 
 
+def _check_dt(dt) -> None:
+    """A sample period must be a finite number of seconds above 0: a negative one turns an
+    energy negative and leaves phase_lag no shift to search."""
+    if not (isinstance(dt, numbers.Real) and math.isfinite(dt) and dt > 0):
+        raise ValueError(f"dt must be a finite sample period > 0 s; got {dt!r}")
+
+
 def phase_lag(achieved, reference, dt: float, max_lag: float = 0.5) -> float:
     """Delay (s) of ``achieved`` behind ``reference`` (both (T,) or (T, D)).
 
@@ -55,6 +64,7 @@ def phase_lag(achieved, reference, dt: float, max_lag: float = 0.5) -> float:
     mean ||a_t - r_{t-k}||^2 = const - 2 xcorr(k) + energy(k): the cross-correlation
     with the window-energy term that would otherwise bias a finite record. Refined to
     sub-sample precision by a parabola through the three shifts around the minimum."""
+    _check_dt(dt)
     a, r = np.atleast_2d(np.asarray(achieved, float).T).T, np.atleast_2d(np.asarray(reference, float).T).T
     if a.shape != r.shape:
         raise ValueError(f"achieved and reference must have the same shape; got {a.shape} and {r.shape}")
@@ -78,12 +88,14 @@ def fitting_lag(n: int, dt: float, max_lag: float = 0.5) -> float:
     """The ``max_lag`` to give ``phase_lag`` for ``n`` samples: ``max_lag``, or less on a signal
     too short for it (a shape run fast). Half a sample below a whole number of samples, so
     phase_lag's ceil(max_lag / dt) lands on it whatever the rounding."""
+    _check_dt(dt)
     shifts = min(int(np.ceil(max_lag / dt)), (n - 3) // 2)
     return (shifts - 0.5) * dt
 
 
 def input_energy(u, dt: float) -> float:
     """E_u = sum_t ||u_t||^2 dt (N^2 s)."""
+    _check_dt(dt)
     u, _ = as_real_array(u, "u", (None, None))
     return float(np.sum(u**2) * dt)
 

@@ -19,7 +19,7 @@ from scipy.interpolate import make_interp_spline
 from softflow.checks import check_choice
 from softflow.data.excitation import mixed_excitation, sum_of_sines_excitation
 from softflow.rod.dynamics import Simulator
-from softflow.rod.robots import DT
+from softflow.rod.robots import DT, U_MAX
 from softflow.store import DATA_DIR, cache_file, cached_arrays
 
 REFERENCE_VERSION = 1  # bump when a reference changes (it keys the reference caches)
@@ -137,6 +137,25 @@ def _lift(sim: Simulator, yz, yz_rate):
     return np.concatenate([p, np.einsum("tij,tj->ti", dp_dyz, yz_rate)], -1)
 
 
+def _check_reach(sim: Simulator, yz):
+    """Refuse a y-z path (K, 2) that no tip can follow: one farther from the rod's axis than the
+    rod is long (a size in millimetres, say). The message gives the rod's static reach, which
+    costs a few static solves, so it is computed only then."""
+    farthest = np.linalg.norm(yz, axis=-1).max()
+    if farthest < sim.robot.length:
+        return
+    rest = sim.tip_positions(sim.rest_q()[None])[0, 1:]
+    grid = np.linspace(-U_MAX, U_MAX, 9)
+    u = np.stack(np.meshgrid(grid, grid, indexing="ij"), -1).reshape(-1, 2)  # every input pair of the range
+    reach = np.linalg.norm(sim.static_tip(np.tile(u, sim.n_inputs // 2))[:, 1:] - rest, axis=1).max()
+    raise ValueError(
+        f"the path reaches {farthest:.4g} m from the rod's axis, farther than the rod is long "
+        f"({sim.robot.length:g} m): size, radius and centre are in metres. At |u| <= {U_MAX:g} N this "
+        f"rod's tip reaches at most {reach:.3f} m from its rest position (y, z) = ({rest[0]:.3f}, "
+        f"{rest[1]:.3f}) m"
+    )
+
+
 def _with_approach(sim: Simulator, yz_path, yz_rate_path):
     """Prepend a minimum-jerk move from the rest tip to the path start; mask the path only."""
     rest = sim.tip_positions(sim.rest_q()[None])[0, 1:]
@@ -151,10 +170,13 @@ def _with_approach(sim: Simulator, yz_path, yz_rate_path):
 def shape_reference(
     sim: Simulator, name: str, size: float = SIZE, centre=(0.0, 0.0), speed: float = NOMINAL_SPEED
 ) -> Reference:
-    """A structured shape of half-extent ``size`` (m) traversed once at mean speed ``speed``."""
+    """A structured shape of half-extent ``size`` (m) about ``centre`` (y, z in m) traversed once at
+    mean speed ``speed`` (m/s)."""
     if not (size > 0 and speed > 0):
         raise ValueError(f"size and speed must be positive; got {size!r}, {speed!r}")
-    spline, length = _path_spline(shape_points(name) * size + np.asarray(centre, float))
+    points = shape_points(name) * size + np.asarray(centre, float)
+    _check_reach(sim, points)
+    spline, length = _path_spline(points)
     duration = length / speed
     t = np.arange(int(round(duration / DT)) + 1) * DT
     progress, rate = _ramped_progress(t, t[-1], RAMP_SECONDS)
@@ -180,6 +202,7 @@ def burst_circle_reference(
     angle = 2 * np.pi * np.log(period / periods[0]) / slope  # integral of 2 pi / P(t)
     angle_rate = 2 * np.pi / period
     yz = np.asarray(centre) + radius * np.stack([np.cos(angle), np.sin(angle)], -1)
+    _check_reach(sim, yz)
     rate = radius * angle_rate[:, None] * np.stack([-np.sin(angle), np.cos(angle)], -1)
     states, mask = _with_approach(sim, yz, rate)
     return Reference(name, "burst", states, mask)
