@@ -17,6 +17,7 @@ only train --ship writes checkpoints/.
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from pathlib import Path
@@ -159,7 +160,7 @@ def _positive(text: str) -> float:
         value = float(text)
     except ValueError:
         value = float("nan")
-    if not value > 0:
+    if not (math.isfinite(value) and value > 0):
         raise argparse.ArgumentTypeError(f"expected a positive number of metres; got {text!r}")
     return value
 
@@ -229,7 +230,7 @@ def _controller(args):
     return control.load_controller(args.model, args.profile, robot, args.gravity), Simulator(robot, args.gravity)
 
 
-def shape_reference(sim: Simulator, shape: str, size: float | None) -> data.Reference:
+def shape_about_rest_tip(sim: Simulator, shape: str, size: float | None) -> data.Reference:
     """The named shape of half-extent ``size`` (m; None: the rod's default) about the rod's rest
     tip (the horizontal rod sags), cached like every reference."""
     size = (data.HARDWARE_SIZE if sim.robot == HW_ROBOT else data.SIZE) if size is None else size
@@ -258,7 +259,7 @@ def _planned_shape(args):
     if args.out.is_dir():
         raise ValueError(f"--out {args.out} is a directory; expected a file to write")
     controller, sim = _controller(args)
-    reference = shape_reference(sim, args.shape, args.size)
+    reference = shape_about_rest_tip(sim, args.shape, args.size)
     return sim, reference, controller.plan(reference.states)
 
 

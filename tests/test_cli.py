@@ -9,6 +9,7 @@ import pandas as pd
 import pytest
 
 from softflow import cli, control, data
+from softflow.data import references
 from softflow.models import checkpoints
 from softflow.report import model_cards
 from softflow.rod import rod_folder
@@ -34,7 +35,7 @@ def exit_code(capsys, *argv) -> tuple[int, str]:
 @pytest.fixture
 def references_cache(tmp_path, monkeypatch):
     """References are cached in a test folder, not in data/."""
-    monkeypatch.setattr(data.references, "DATA_DIR", tmp_path / "cache")
+    monkeypatch.setattr(references, "DATA_DIR", tmp_path / "cache")
 
 
 @pytest.mark.parametrize("verb", VERBS)
@@ -64,6 +65,7 @@ def test_global_help_lists_every_verb(capsys):
         (["plan", "rf-fwd", "--shape", "circle"], "required: --out"),
         (["plan", "forward", "--shape", "circle", "--out", "u.csv"], "argument MODEL: invalid choice: 'forward'"),
         (["plan", "mlp", "--shape", "circle", "--size", "-0.1", "--out", "u.csv"], "expected a positive number"),
+        (["plan", "mlp", "--shape", "circle", "--size", "inf", "--out", "u.csv"], "expected a positive number"),
         (["evaluate", "rf-fwd", "--references", "burst"], "argument --references: invalid choice"),
         (["export", "rf-fwd", "--out", "c.csv"], "required: --shape"),
         (["train"], "required: MODEL"),
@@ -98,7 +100,7 @@ def test_plan_writes_the_controllers_plan(tmp_path, capsys, references_cache):
     lines = run(capsys, "plan", "mlp", "--shape", "circle", "--size", "0.02", "--out", str(out))
     assert lines[-1] == str(out)
     sim = Simulator(SIM_ROBOT)
-    reference = cli.shape_reference(sim, "circle", 0.02)  # from the cache the CLI wrote
+    reference = cli.shape_about_rest_tip(sim, "circle", 0.02)  # from the cache the CLI wrote
     expected = control.load_controller("mlp").plan(reference.states)  # (T, 2)
     table = pd.read_csv(out)
     assert list(table.columns) == ["time_s", "u1_N", "u2_N"]
