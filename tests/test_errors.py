@@ -8,7 +8,7 @@ import warnings
 import numpy as np
 import pytest
 
-from softflow import control, data
+from softflow import control, data, hardware
 from softflow.control import metrics
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import HW_ROBOT, SIM_ROBOT, U_MAX
@@ -91,3 +91,13 @@ def test_metrics_need_a_positive_finite_sample_period(dt):
     ):
         with pytest.raises(ValueError, match=expected):
             call()
+
+
+def test_sag_calibration_needs_a_horizontal_rod_sagging_down():
+    rest_tip = Simulator(HW_ROBOT, gravity="horizontal").static_tip(np.zeros((1, 2)))[0]
+    with pytest.raises(TypeError, match="gravity"):
+        hardware.calibrate_sag(HW_ROBOT, rest_tip)  # the mounting must be stated
+    with pytest.raises(ValueError, match=r"got gravity='vertical': a rod hanging along gravity, or without it, does "):
+        hardware.calibrate_sag(HW_ROBOT, [HW_ROBOT.length, 0.0, 0.0], gravity="vertical")
+    with pytest.raises(ValueError, match=r"rest_tip z = 0.1\d+ m is above the rod's axis.*expected a negative z"):
+        hardware.calibrate_sag(HW_ROBOT, rest_tip * [1, 1, -1], gravity="horizontal")

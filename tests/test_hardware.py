@@ -142,12 +142,12 @@ def test_sag_calibration_recovers_the_plants_rho_over_e():
     E is nominal x 0.85 / 1.10 and its rest tip matches the plant's."""
     plant = hardware.TYPICAL_GAP.plant_robot(HW_ROBOT)
     rest_tip = Simulator(plant, gravity="horizontal").static_tip(np.zeros((1, 2)))[0]
-    calibrated = hardware.calibrate_sag(HW_ROBOT, rest_tip)
+    calibrated = hardware.calibrate_sag(HW_ROBOT, rest_tip, gravity="horizontal")
     assert calibrated.youngs_modulus / HW_ROBOT.youngs_modulus == pytest.approx(0.85 / 1.10, rel=1e-4)
     tip = Simulator(calibrated, gravity="horizontal").static_tip(np.zeros((1, 2)))[0]
     assert np.linalg.norm(tip - rest_tip) < 1e-4  # within 0.1 mm
     with pytest.raises(ValueError, match="metres"):
-        hardware.calibrate_sag(HW_ROBOT, 1e3 * rest_tip)  # millimetres by mistake
+        hardware.calibrate_sag(HW_ROBOT, 1e3 * rest_tip, gravity="horizontal")  # millimetres by mistake
 
 
 def test_step_commands_equal_the_command_file_of_the_same_plan():

@@ -80,12 +80,26 @@ TYPICAL_GAP = RealityGap(
 )
 
 
-def calibrate_sag(robot: Robot, rest_tip, gravity: str = "horizontal") -> Robot:
+def calibrate_sag(robot: Robot, rest_tip, *, gravity: str) -> Robot:
     """The rod with its Young's modulus rescaled so that its unactuated equilibrium tip sags
-    as far as a measured one (``rest_tip`` (3,), m, robot frame): the first thing to do with a
-    real rod, since the sag (rho A g L^3 / 8 EI in small deflection) decides where every
-    shape is reached. Statics identify only rho / E, so E carries the whole correction."""
+    as far as a measured one (``rest_tip`` (3,), m, robot frame, docs/real_robot.md): the first
+    thing to do with a real rod, since the sag (rho A g L^3 / 8 EI in small deflection) decides
+    where every shape is reached. Statics identify only rho / E, so E carries the whole
+    correction. ``gravity`` names the mounting the tip was measured in, and must be
+    "horizontal": a hanging rod does not sag sideways, so it says nothing about E."""
+    if gravity != "horizontal":
+        raise ValueError(
+            "calibrate_sag needs the rest tip of a horizontally mounted rod (gravity='horizontal'); "
+            f"got gravity={gravity!r}: a rod hanging along gravity, or without it, does not sag sideways, "
+            "so its rest tip says nothing about E. Calibrate from a horizontal mounting, or identify "
+            "the rod from a filmed excitation (hardware.identification)"
+        )
     rest_tip, _ = as_real_array(rest_tip, "rest_tip", (3,))
+    if rest_tip[2] > 0:
+        raise ValueError(
+            f"rest_tip z = {rest_tip[2]:.4g} m is above the rod's axis, but gravity along -z sags the "
+            "tip to z < 0: expected a negative z (robot frame: z up, docs/real_robot.md)"
+        )
     straight = np.array([robot.length, 0.0, 0.0])
     measured = np.linalg.norm(rest_tip - straight)
 
