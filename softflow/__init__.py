@@ -8,7 +8,7 @@ costs nothing until a name is asked for.
 from softflow.lazy import facade
 
 EXPORTS = {
-    "rod": ["DT", "HW_ROBOT", "Robot", "SIM_ROBOT", "Simulator", "U_MAX"],
+    "rod": ["DT", "HW_ROBOT", "Robot", "SIM_ROBOT", "Simulator", "TWO_SEGMENT_ROD", "U_MAX"],
     "data": ["recordings"],
     "control": ["Controller", "evaluate", "load_controller"],
 }

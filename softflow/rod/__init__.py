@@ -5,7 +5,7 @@ closed-form checks. Imports only the foundation (checks, store).
 from softflow.lazy import facade
 
 EXPORTS = {
-    "robots": ["U_MAX", "DT", "Robot", "SIM_ROBOT", "HW_ROBOT", "ROBOTS", "rod_folder"],
+    "robots": ["U_MAX", "DT", "Robot", "SIM_ROBOT", "HW_ROBOT", "TWO_SEGMENT_ROD", "ROBOTS", "rod_folder"],
     "dynamics": ["SIMULATOR_VERSION", "GRAVITY", "GRAVITY_DIRECTIONS", "Simulator"],
     "statics": [
         "STATICS_VERSION",
@@ -25,6 +25,7 @@ EXPORTS = {
     "validation": [
         "MM",
         "arc_tip",
+        "arc_disk_positions",
         "euler_bernoulli_frequencies",
         "kelvin_voigt_damping_ratio",
         "heavy_cantilever_shape",

@@ -7,7 +7,7 @@ Dynamics (Lagrange in the strain coordinates q, D1):
     M(q) qdd + c(q, qd) + K q + D qd = B u + G(q)
 
 with K = int Phi^T EI Phi ds (diagonal for Legendre), D = (eta/E) K (Kelvin-Voigt),
-B the cable map (a constant body moment u r over the length), G gravity and
+B the cable map (a constant body moment u r from the base to where the cables end), G gravity and
 c = sum_n m_n Jp_n^T (d/dt Jp_n) qd the convective term (D2). Mass is lumped at the
 segment ends (trapezoid weights); rotary inertia of the cross-section, (D/L)^2 ~ 1e-4 of
 the translational one, is neglected. Time stepping (D3) is linearly implicit
@@ -20,7 +20,6 @@ from __future__ import annotations
 import math
 import os
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import asdict
 
 import numpy as np
 from tqdm import tqdm
@@ -50,10 +49,13 @@ class Simulator:
 
     Parameters
     ----------
-    robot: physical parameters (``SIM_ROBOT`` or ``HW_ROBOT``).
+    robot: physical parameters (``SIM_ROBOT``, ``HW_ROBOT`` or ``TWO_SEGMENT_ROD``); u has
+        ``robot.n_inputs`` entries.
     gravity: "vertical" (along +x), "horizontal" (along -z) or "none".
-    order: highest Legendre degree of each curvature (q has 2 (order+1) entries).
-    n_segments: segments of the spatial integration.
+    order: highest Legendre degree of each curvature in each of the rod's segments (q has
+        2 (order+1) entries per segment).
+    n_segments: segments of the spatial integration, over the whole rod (shared among the
+        rod's segments by length).
     substeps: time steps per ``dt`` sample.
     damping: False switches the Kelvin-Voigt damping off (for validation).
     threads, chunk_size: rollouts run in chunks of ``chunk_size`` episodes on
@@ -96,37 +98,55 @@ class Simulator:
         self.n_segments, self.substeps, self.dt = n_segments, substeps, dt
         self.threads, self.chunk_size = threads or min(2, os.cpu_count() or 1), chunk_size
         self.g = GRAVITY_DIRECTIONS[gravity]
-        self.kinematics = RodKinematics(robot.length, order, n_segments)
-        self.n_modes, self.nq = self.kinematics.n_modes, self.kinematics.nq
-        L, N = robot.length, n_segments
+        self.kinematics = RodKinematics(robot.segment_lengths, order, n_segments)
+        self.n_modes, self.nq, self.n_inputs = self.kinematics.n_modes, self.kinematics.nq, robot.n_inputs
+        per_segment = self.kinematics.modes_per_segment
 
-        # K = int Phi^T EI Phi ds = EI L / (2m + 1) per mode (Legendre orthogonality); D = (eta/E) K (D1).
-        modal = robot.bending_stiffness * L / (2 * np.arange(self.n_modes) + 1)
+        # K = int Phi^T EI Phi ds = EI L_j / (2m + 1) per mode of segment j (Legendre orthogonality);
+        # D = (eta/E) K (D1).
+        modal = np.concatenate(
+            [robot.bending_stiffness * part / (2 * np.arange(per_segment) + 1) for part in robot.segment_lengths]
+        )
         self.stiffness = np.diag(np.concatenate([modal, modal]))  # (nq, nq)
         self.damping_matrix = (
             (robot.damping / robot.youngs_modulus) * self.stiffness if damping else np.zeros_like(self.stiffness)
         )
-        # Cable map: constant body moment u_i r over the length -> r int P_m ds = r L delta_m0.
-        self.cable_map = np.zeros((self.nq, 2))  # (nq, 2)
-        self.cable_map[0, 0] = self.cable_map[self.n_modes, 1] = robot.cable_radius * L
+        # int_0^{s_g} Phi ds in the bending components up to the disk s_g where cable group g ends:
+        # L_j on the m = 0 modes of the segments j before it (K5).
+        self.anchor_integrals = np.zeros((self.nq, self.n_inputs))  # (nq, m)
+        for g, anchor in enumerate(sorted(set(robot.anchors))):
+            for j in range(robot.segment_ends.index(anchor) + 1):
+                kappa_1 = j * per_segment
+                self.anchor_integrals[kappa_1, 2 * g] = robot.segment_lengths[j]
+                self.anchor_integrals[self.n_modes + kappa_1, 2 * g + 1] = robot.segment_lengths[j]
+        # Cable map (D1, D4): group g applies the constant body moment u_g r over [0, s_g] -> r int_0^{s_g} Phi ds.
+        self.cable_map = robot.cable_radius * self.anchor_integrals  # (nq, m)
         # Lumped masses at segment ends 1..N (trapezoid weights; node 0 is clamped).
-        self.node_mass = np.full(N, robot.mass_per_length * self.kinematics.ds)
-        self.node_mass[-1] /= 2
+        ds = self.kinematics.ds
+        self.node_mass = robot.mass_per_length * 0.5 * (ds + np.append(ds[1:], 0.0))  # (N,)
         self._rest_q = self._static_table = None
 
     @property
     def u_bound(self) -> float:
-        """|u| (N) that curls the rod into a full circle without gravity (2 pi EI / (r L)):
-        beyond it the model (no self-contact) means nothing, so larger inputs are refused."""
+        """|u| (N) of the tip cables that curls the rod into a full circle without gravity
+        (2 pi EI / (r L)): beyond it the model (no self-contact) means nothing."""
         r = self.robot
         return 2 * math.pi * r.bending_stiffness / (r.cable_radius * r.length)
+
+    def free_turning(self, u) -> np.ndarray:
+        """Angle (rad) through which u (..., m) turns the rod without gravity (...,): the sum
+        over segments j of L_j |kappa_j|, each bent by the cable groups that pass it (D4)."""
+        pairs = np.reshape(u, np.shape(u)[:-1] + (-1, 2))  # (..., G, 2)
+        per_segment = self.kinematics.modes_per_segment
+        passing = self.anchor_integrals[: self.n_modes : per_segment, 0::2]  # (S, G): L_j where group g passes j
+        r = self.robot
+        return np.linalg.norm(passing @ pairs, axis=-1).sum(-1) * r.cable_radius / r.bending_stiffness
 
     def spec(self) -> dict:
         """Every number that decides what this simulator computes: the key of its caches
         (the robot's parameters, not its name; not threads or chunk_size)."""
-        robot = {k: v for k, v in asdict(self.robot).items() if k != "name"}
         return dict(
-            robot=robot,
+            robot=self.robot.parameters(),
             gravity=self.gravity,
             order=self.order,
             n_segments=self.n_segments,
@@ -141,11 +161,13 @@ class Simulator:
         u, _ = as_real_array(u, "u", shape)
         if u.shape[0] == 0:
             raise ValueError("u must hold at least one episode (its batch axis is empty)")
-        worst = np.linalg.norm(u, axis=-1).max() if u.size else 0.0
-        if worst > self.u_bound:
+        turning = self.free_turning(u).ravel()
+        if u.size and turning.max() > 2 * math.pi:
+            worst = turning.argmax()
+            magnitude = np.linalg.norm(u.reshape(-1, u.shape[-1])[worst])
             raise ValueError(
-                f"|u| = {worst:.3g} N exceeds {self.u_bound:.1f} N, the actuation that curls "
-                f"{self.robot.name!r} into a full circle (u in newtons?)"
+                f"|u| = {magnitude:.3g} N exceeds {magnitude * 2 * math.pi / turning[worst]:.1f} N, the actuation "
+                f"along it that curls {self.robot.name!r} into a full circle (u in newtons?)"
             )
         return u
 
@@ -164,10 +186,18 @@ class Simulator:
         plus, minus, eps = self.kinematics.positions_along(q, qd, _CONVECTIVE_STEP)
         return np.concatenate([self.tip_positions(q), (plus[:, -1] - minus[:, -1]) / (2 * eps)], -1)
 
+    def disk_positions(self, q):
+        """Position of each segment's end disk, base outwards, the tip last: q (..., nq) -> (..., S, 3)
+        (e.g. the middle disk and the tip of ``TWO_SEGMENT_ROD`` from ``static_q`` or ``integrate``)."""
+        q, _ = as_real_array(q, "q", (None,) * (np.ndim(q) - 1) + (self.nq,))
+        ends = self.kinematics.disk_positions(q.reshape(-1, self.nq))
+        return ends.reshape(q.shape[:-1] + ends.shape[1:])
+
     def bend_angles(self, q):
-        """Total bend angle of each curvature, int kappa_i ds (B, 2): what the cables feel."""
+        """Bend angle of each curvature from the base to where each cable group ends,
+        int_0^{s_g} kappa_i ds (B, m): what the cables of group g feel."""
         q, _ = as_real_array(q, "q", (None, self.nq))
-        return q[:, [0, self.n_modes]] * self.robot.length
+        return q @ self.anchor_integrals
 
     # ------------------------------------------------------------------ dynamics
     def _convective_force(self, Jp, q, qd, positions):
@@ -203,7 +233,7 @@ class Simulator:
     def rest_q(self):
         """Gravity equilibrium with slack cables (straight rod when gravity is along it)."""
         if self._rest_q is None:
-            self._rest_q = statics.equilibrium(self, np.zeros((1, 2)))[0][0]
+            self._rest_q = statics.equilibrium(self, np.zeros((1, self.n_inputs)))[0][0]
         return self._rest_q.copy()
 
     def _step(self, q, qd, force, h):
@@ -253,20 +283,20 @@ class Simulator:
         return [np.concatenate(parts) for parts in zip(*results)]
 
     def integrate(self, u, q0, qd0, *, progress: bool = False):
-        """Advance every rod through u (B, T, 2) from (q0, qd0) (B, nq); zero-order hold.
+        """Advance every rod through u (B, T, m) from (q0, qd0) (B, nq); zero-order hold.
 
         Returns q and qd at the T+1 sample times, each (B, T+1, nq).
         """
-        u = self._actuation(u, (None, None, 2))
+        u = self._actuation(u, (None, None, self.n_inputs))
         B = u.shape[0]
         q0, _ = as_real_array(np.broadcast_to(q0, (B, self.nq)), "q0", (B, self.nq))
         qd0, _ = as_real_array(np.broadcast_to(qd0, (B, self.nq)), "qd0", (B, self.nq))
         return self._map_chunks(lambda c: self._advance(u[c], q0[c], qd0[c]), B, progress)
 
     def rollout(self, u, *, start_q=None, progress: bool = False):
-        """Tip states (B, T+1, 6) = [p, v] for actuation u (B, T, 2) from rest: the rest pose,
+        """Tip states (B, T+1, 6) = [p, v] for actuation u (B, T, m) from rest: the rest pose,
         or ``start_q`` (B, nq) (e.g. an equilibrium, ``static_q``) at zero velocity."""
-        u = self._actuation(u, (None, None, 2))
+        u = self._actuation(u, (None, None, self.n_inputs))
         B = u.shape[0]
         q0 = self.rest_q() if start_q is None else as_real_array(start_q, "start_q", (B, self.nq))[0]
         q0, qd0 = np.broadcast_to(q0, (B, self.nq)), np.zeros((B, self.nq))
@@ -279,12 +309,12 @@ class Simulator:
 
     # ------------------------------------------------------------------ statics (softflow.statics)
     def static_q(self, u):
-        """Equilibrium generalized coordinates for actuation u (B, 2) -> (B, nq)."""
-        return statics.equilibrium(self, self._actuation(u, (None, 2)))[0]
+        """Equilibrium generalized coordinates for actuation u (B, m) -> (B, nq)."""
+        return statics.equilibrium(self, self._actuation(u, (None, self.n_inputs)))[0]
 
     def static_tip(self, u):
-        """Equilibrium tip position for constant actuation u (B, 2) -> (B, 3)."""
-        return statics.static_tip(self, self._actuation(u, (None, 2)))
+        """Equilibrium tip position for constant actuation u (B, m) -> (B, 3)."""
+        return statics.static_tip(self, self._actuation(u, (None, self.n_inputs)))
 
     def inverse_static(self, p, tol=1e-10, max_iter=50, max_residual=None):
         """Least-squares actuation whose equilibrium tip is closest to p (B, 3) -> (B, 2);

@@ -1,7 +1,7 @@
 """Kinematics of the GVS rod: strain basis, segment frames and position Jacobians.
 
 Pure geometry of the generalized coordinates q (no mass, no force). Equation numbers
-(K1)-(K4) refer to docs/simulator.md.
+(K1)-(K5) refer to docs/simulator.md.
 
 Strain (K1): the rod is inextensible, unshearable and torsion-free; its two bending
 curvatures are Legendre series in the arc length,
@@ -9,9 +9,11 @@ curvatures are Legendre series in the arc length,
     kappa_i(s) = sum_m q[i, m] P_m(2 s / L - 1),   i = 1 (towards +y), 2 (towards +z),
 
 so the body curvature vector is k = (0, -kappa_2, kappa_1) and q has 2 (order + 1)
-entries. The pose g(s) integrates g' = g xi^ along s on ``n_segments`` segments (K2):
-segment k turns by the exact integral of k over it (first Magnus term), and its chord
-is the exact one for constant curvature, so a uniform bend is exact at any resolution.
+entries. A rod made of several segments (K5) has one such series per segment, in the
+segment's own arc length, so the strain may jump where segments meet. The pose g(s)
+integrates g' = g xi^ along s on spatial segments (K2): each turns by the exact integral
+of k over it (first Magnus term), and its chord is the exact one for constant curvature,
+so a uniform bend is exact at any resolution.
 """
 
 from __future__ import annotations
@@ -76,20 +78,34 @@ def rowwise(x, W):
 
 
 class RodKinematics:
-    """Frames, node positions and their Jacobians for a rod of ``length`` whose curvatures
-    are Legendre series of degree ``order``, integrated on ``n_segments`` segments."""
+    """Frames, node positions and their Jacobians for a rod of segments ``segment_lengths``
+    whose curvatures are Legendre series of degree ``order`` in each segment (K5), integrated
+    on ``n_segments`` spatial segments shared among the rod's segments by length (at least
+    one each)."""
 
-    def __init__(self, length: float, order: int, n_segments: int):
-        self.length, self.order, self.n_segments = length, order, n_segments
-        self.n_modes = order + 1
+    def __init__(self, segment_lengths: tuple[float, ...], order: int, n_segments: int):
+        self.length, self.order = sum(segment_lengths), order
+        counts = [max(1, round(n_segments * part / self.length)) for part in segment_lengths]
+        self.n_segments = sum(counts)
+        self.modes_per_segment = order + 1
+        self.n_modes = len(segment_lengths) * self.modes_per_segment  # per curvature
         self.nq = 2 * self.n_modes
-        self.ds = length / n_segments
-        # Exact segment integrals of the basis, a[k, m] = int_seg_k P_m ds (Gauss, exact for polynomials).
-        xg, wg = legendre.leggauss(self.n_modes + 1)
-        edges = np.linspace(0.0, length, n_segments + 1)
-        s = edges[:-1, None] + (xg[None] + 1) / 2 * self.ds  # (N, n_gauss)
-        basis = legendre.legvander(2 * s / length - 1, order)  # (N, n_gauss, n_modes)
-        self.segment_basis = np.einsum("kgm,g->km", basis, wg * self.ds / 2)  # (N, n_modes)
+        self.ds = np.concatenate([np.full(n, part / n) for part, n in zip(segment_lengths, counts)])  # (N,)
+        self.segment_ends = np.cumsum(counts) - 1  # node index of each rod segment's end (the disks, the tip last)
+        # Exact integrals of the basis over the spatial segments, a[k, j (order + 1) + m] = int_seg_k P_m ds
+        # for k in rod segment j, 0 elsewhere (K5; Gauss, exact for polynomials).
+        xg, wg = legendre.leggauss(self.modes_per_segment + 1)
+        # Column-major, as einsum returns it: rowwise(q, segment_basis.T) then multiplies by a row-major
+        # matrix, and a one-segment rod keeps the bits it had with a single einsum.
+        self.segment_basis = np.zeros((self.n_segments, self.n_modes), order="F")  # (N, n_modes)
+        rows = np.concatenate([[0], np.cumsum(counts)])
+        for j, (part, n) in enumerate(zip(segment_lengths, counts)):
+            ds = part / n
+            edges = np.linspace(0.0, part, n + 1)
+            s = edges[:-1, None] + (xg[None] + 1) / 2 * ds  # (n, n_gauss), from the segment's start
+            basis = legendre.legvander(2 * s / part - 1, order)  # (n, n_gauss, order + 1)
+            columns = slice(j * self.modes_per_segment, (j + 1) * self.modes_per_segment)
+            self.segment_basis[rows[j] : rows[j + 1], columns] = np.einsum("kgm,g->km", basis, wg * ds / 2)
 
     def frames(self, q) -> dict:
         """Segment rotations, chords and node positions for q (B, nq) (K2).
@@ -146,6 +162,10 @@ class RodKinematics:
     def tip_positions(self, q):
         """Tip position for q (B, nq) -> (B, 3)."""
         return self.frames(q)["positions"][:, -1]
+
+    def disk_positions(self, q):
+        """Position of each rod segment's end, base outwards (the tip last), for q (B, nq) -> (B, S, 3)."""
+        return self.frames(q)["positions"][:, self.segment_ends]
 
     def centerline(self, q):
         """Node positions (B, N+1, 3) and rotations (B, N+1, 3, 3), base first."""

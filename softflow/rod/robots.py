@@ -1,15 +1,19 @@
-"""Physical parameters of the two rods in the paper (SI units)."""
+"""Physical parameters of the paper's two rods and of the two-segment rod (SI units)."""
 
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
+
+import numpy as np
 
 from softflow.store import content_key
 
 # The simulation rod's actuation range and sample period: the paper's values, defined once.
 U_MAX = 4.0  # N, actuation range [-U_MAX, U_MAX] of each differential tension
 DT = 0.01  # s, sampling interval
+# Fields added after caches were keyed: left out of a key while at their default (Robot.parameters).
+_ADDED_FIELDS = ("cable_anchors",)
 
 
 @dataclass(frozen=True)
@@ -17,8 +21,12 @@ class Robot:
     """A cantilevered, cable-driven elastic rod with a circular cross-section.
 
     Cables run straight along the rod on a circle of diameter ``cable_distance``
-    (the paper's W) and are anchored at the tip; ``cable_angles`` place them on
-    that circle, measured from +y towards +z.
+    (the paper's W); ``cable_angles`` place them on that circle, measured from +y
+    towards +z, and ``cable_anchors`` give the arc length at which each one ends
+    (empty: all at the tip). The disks where cables end cut the rod into segments,
+    each with its own strain basis; the cables that end at one disk (three, or four
+    listed as two antagonistic pairs) form a group driven by one input pair (u_y, u_z),
+    and u lists the groups' pairs from the base outwards.
     """
 
     name: str
@@ -29,6 +37,7 @@ class Robot:
     damping: float  # Pa s, Kelvin-Voigt viscosity (eta)
     density: float  # kg/m^3
     cable_angles: tuple[float, ...]  # rad
+    cable_anchors: tuple[float, ...] = ()  # m from the base, one per cable; () = all at the tip
 
     def __post_init__(self):
         for field in ("length", "diameter", "cable_distance", "youngs_modulus", "density"):
@@ -37,8 +46,20 @@ class Robot:
                 raise ValueError(f"{field} must be a positive finite number; got {value!r}")
         if not (math.isfinite(self.damping) and self.damping >= 0):
             raise ValueError(f"damping must be a non-negative finite number; got {self.damping!r}")
-        if len(self.cable_angles) not in (3, 4):
-            raise ValueError(f"cable_angles must list 3 or 4 cables; got {len(self.cable_angles)}")
+        if self.cable_anchors and len(self.cable_anchors) != len(self.cable_angles):
+            raise ValueError(
+                f"cable_anchors must give one arc length per cable ({len(self.cable_angles)}); "
+                f"got {len(self.cable_anchors)}"
+            )
+        for anchor in self.cable_anchors:
+            if not (isinstance(anchor, (int, float)) and 0 < anchor <= self.length):
+                raise ValueError(f"cable_anchors must lie in (0, length = {self.length}] m; got {anchor!r}")
+        holes = np.exp(1j * np.asarray(self.cable_angles))  # each cable's hole on the unit circle
+        if np.abs(np.subtract.outer(holes, holes))[np.triu_indices(len(holes), 1)].min(initial=2.0) < 1e-9:
+            raise ValueError(f"cable_angles must be distinct: two cables cannot share a hole; got {self.cable_angles}")
+        for group in self.cable_groups:
+            if len(group) not in (3, 4):
+                raise ValueError(f"each anchor disk must end 3 or 4 cables; got {len(group)} (cables {list(group)})")
 
     @property
     def area(self) -> float:  # m^2
@@ -63,6 +84,36 @@ class Robot:
     @property
     def n_cables(self) -> int:
         return len(self.cable_angles)
+
+    @property
+    def anchors(self) -> tuple[float, ...]:  # m, where each cable ends
+        return self.cable_anchors or (self.length,) * self.n_cables
+
+    @property
+    def segment_ends(self) -> tuple[float, ...]:  # m, the disks that end a segment, base outwards
+        return tuple(sorted(set(self.anchors) | {self.length}))
+
+    @property
+    def segment_lengths(self) -> tuple[float, ...]:  # m
+        ends = self.segment_ends
+        return tuple(end - start for start, end in zip((0.0,) + ends[:-1], ends))
+
+    @property
+    def cable_groups(self) -> tuple[tuple[int, ...], ...]:
+        """The cables that end at each anchor disk, base outwards: one input pair each."""
+        return tuple(
+            tuple(c for c, anchor in enumerate(self.anchors) if anchor == end) for end in sorted(set(self.anchors))
+        )
+
+    @property
+    def n_inputs(self) -> int:  # m: a differential pair (u_y, u_z) per anchor disk
+        return 2 * len(self.cable_groups)
+
+    def parameters(self) -> dict:
+        """The parameters that key caches (not the name): a field added later counts only
+        when it differs from its default, so the keys of the rods that existed stay as they were."""
+        defaults = {f.name: f.default for f in fields(self) if f.name in _ADDED_FIELDS}
+        return {k: v for k, v in asdict(self).items() if k != "name" and not (k in defaults and v == defaults[k])}
 
 
 # Simulation rod of the paper (Sec. IV-A): two orthogonal antagonistic pairs,
@@ -90,7 +141,22 @@ HW_ROBOT = Robot(
     cable_angles=(0.0, 2 * math.pi / 3, 4 * math.pi / 3),
 )
 
-ROBOTS = {robot.name: robot for robot in (SIM_ROBOT, HW_ROBOT)}
+# The simulation rod in two segments of 0.2 m (the paper's future work): four cables end at
+# the middle disk (u1, u2) and four run to the tip (u3, u4); the tip cables' holes are
+# turned by 45 degrees from the middle ones' (two cables cannot share a hole).
+TWO_SEGMENT_ROD = Robot(
+    name="two",
+    length=0.4,
+    diameter=0.004,
+    cable_distance=0.055,
+    youngs_modulus=2e9,
+    damping=5e7,
+    density=12000.0,
+    cable_angles=tuple(a + offset for offset in (0.0, math.pi / 4) for a in SIM_ROBOT.cable_angles),
+    cable_anchors=(0.2,) * 4 + (0.4,) * 4,
+)
+
+ROBOTS = {robot.name: robot for robot in (SIM_ROBOT, HW_ROBOT, TWO_SEGMENT_ROD)}
 
 
 def rod_folder(robot: Robot, gravity: str) -> str:
@@ -98,5 +164,4 @@ def rod_folder(robot: Robot, gravity: str) -> str:
     calibrated copy of a rod never shares its folder); "" for the paper's simulation rod."""
     if (robot, gravity) == (SIM_ROBOT, "vertical"):
         return ""
-    parameters = {k: v for k, v in asdict(robot).items() if k != "name"}
-    return f"{robot.name}-{gravity}-{content_key(parameters, 8)}"
+    return f"{robot.name}-{gravity}-{content_key(robot.parameters(), 8)}"

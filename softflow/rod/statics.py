@@ -2,7 +2,10 @@
 tabulated inverse for millions of points (the prior of RF-Physical).
 
 Every function takes a ``Simulator`` (its stiffness K, cable map B, gravity and
-kinematics); equation numbers (S1)-(S3) refer to docs/simulator.md.
+kinematics); equation numbers (S1)-(S4) refer to docs/simulator.md. A rod with more
+inputs than the fitted tip coordinates (``TWO_SEGMENT_ROD``: four for a 3-D point) reaches
+a point with many u; the inverse then returns the least-norm one (S4). The y-z lift and
+the table assume two inputs and refuse other rods.
 """
 
 from __future__ import annotations
@@ -21,6 +24,11 @@ STATICS_VERSION = 1  # bump when a number the table or the solvers produce chang
 # equilibrium tip: wrong units or frame, not the few centimetres a moving rod's tip is off
 # the static surface (RF-Physical's prior is the inverse statics of such points).
 MAX_RESIDUAL = 0.25
+# The least-norm inverse (S4). Its null-space step is known to about 1e-10 |u|: the tangent
+# stiffness's forward difference of gravity (step 1e-6) leaves round-off of that size in J.
+NULL_RTOL = 1e-8  # converged when the null-space step is below this fraction of |u|
+_CURVATURE_STEP = 1e-3  # N, forward difference of J along the null space (relative error ~1e-4)
+_HESSIAN_FLOOR = 0.1  # reduced Hessian eigenvalues floored here: a concave stretch falls back to the plain step
 
 
 def gravity_force(sim, q):
@@ -56,48 +64,92 @@ def equilibrium(sim, u, q=None, tol=1e-12, max_iter=50):
 
 
 def arc_actuation(robot: Robot, p):
-    """Actuation (B, 2) of the gravity-free circular arc whose tip chord points at p (B, 3):
-    a uniform bend by 2 atan2(lateral, x) (S2), the closed-form start of inverse statics."""
+    """Actuation (B, m) of the gravity-free circular arc whose tip chord points at p (B, 3):
+    a uniform bend by 2 atan2(lateral, x) (S2) by the outermost cables (those that run to
+    the tip), the others slack; the closed-form start of inverse statics."""
     lateral = np.hypot(p[:, 1], p[:, 2])
     bend = 2 * np.arctan2(lateral, p[:, 0])
     heading = np.arctan2(p[:, 2], p[:, 1])
     magnitude = bend / robot.length * robot.bending_stiffness / robot.cable_radius
-    return magnitude[:, None] * np.stack([np.cos(heading), np.sin(heading)], -1)
+    arc = magnitude[:, None] * np.stack([np.cos(heading), np.sin(heading)], -1)  # (B, 2)
+    return np.concatenate([np.zeros((len(p), robot.n_inputs - 2)), arc], -1)
+
+
+def _tip_jacobian(sim, q, Kt):
+    """Tip (B, 3) and d p / d u = Jp_tip Kt^-1 B (B, 3, m) at the equilibrium q with tangent stiffness Kt (S3)."""
+    f = sim.kinematics.frames(q)
+    J_tip = sim.kinematics.position_jacobians(f)[:, -1]  # (B, 3, nq)
+    return f["positions"][:, -1], J_tip @ np.linalg.solve(
+        Kt, np.broadcast_to(sim.cable_map, Kt.shape[:1] + sim.cable_map.shape)
+    )
+
+
+def _least_norm_step(sim, J, error, u, q, rows):
+    """Step (B, m) towards the least-norm u that fits, and its null-space part (S4).
+
+    The fit J^+ e moves the tip onto the target; along the null space N of J, a Newton
+    step on |u|^2 / 2 restricted to the solutions: N H^-1 N^T u with the reduced Hessian
+    H = I - sum_i lambda_i N^T d2 p_i N (multipliers lambda = J^+T u; the curvature d2 p N
+    by a forward difference of J, eigenvalues floored at _HESSIAN_FLOOR). The whole step
+    is capped at u_bound / 4."""
+    U, S, Vh = np.linalg.svd(J)  # (B, r, r), (B, r), (B, m, m)
+    r = J.shape[1]
+    pinv = Vh[:, :r].transpose(0, 2, 1) / S[:, None, :] @ U.transpose(0, 2, 1)  # (B, m, r)
+    N = Vh[:, r:].transpose(0, 2, 1)  # (B, m, k), orthonormal
+    multipliers = (pinv.transpose(0, 2, 1) @ u[..., None])[..., 0]  # (B, r)
+    curvature = []  # d2 p / du2 [N_a, N_b]: (k) x (B, r, k)
+    for a in range(N.shape[2]):
+        shifted = u + _CURVATURE_STEP * N[:, :, a]
+        _, J_shifted = _tip_jacobian(sim, *equilibrium(sim, shifted, q))
+        curvature.append((J_shifted[:, rows] - J) @ N / _CURVATURE_STEP)
+    H = np.eye(N.shape[2]) - np.einsum("br,abrc->bac", multipliers, np.stack(curvature))  # (B, k, k)
+    values, vectors = np.linalg.eigh(0.5 * (H + H.transpose(0, 2, 1)))
+    H = vectors * np.maximum(values, _HESSIAN_FLOOR)[:, None, :] @ vectors.transpose(0, 2, 1)
+    null = -(N @ np.linalg.solve(H, N.transpose(0, 2, 1) @ u[..., None]))[..., 0]
+    step = (pinv @ error[..., None])[..., 0] + null
+    cap = sim.u_bound / 4
+    return step * np.minimum(1.0, cap / np.maximum(np.linalg.norm(step, axis=-1), 1e-300))[:, None], null
 
 
 def fit_static(sim, target, rows, u, tol=1e-10, max_iter=50, u_limit=np.inf):
     """Gauss-Newton on u so that the equilibrium tip matches ``target`` in coordinates
-    ``rows``, through d p/d u = Jp_tip Kt^-1 B (S3). Returns u, the tip and d p/d u (B, 3, 2).
-    Raises RuntimeError when it does not converge or an iterate needs |u| > u_limit."""
+    ``rows``, through d p/d u = Jp_tip Kt^-1 B (S3). With more inputs than rows, the
+    least-norm u that fits (S4): converged when the fitting step is below ``tol`` and the
+    null-space step below NULL_RTOL |u|. Returns u, the tip and d p/d u (B, 3, m). Raises
+    RuntimeError when it does not converge or an iterate needs |u| > u_limit."""
     q = None
     for _ in range(max_iter):
         if np.abs(u).max() > u_limit:
             raise RuntimeError(f"static fit needs |u| > {u_limit} N")
         q, Kt = equilibrium(sim, u, q)
-        f = sim.kinematics.frames(q)
-        J_tip = sim.kinematics.position_jacobians(f)[:, -1]  # (B, 3, nq)
-        dp_du = J_tip @ np.linalg.solve(Kt, np.broadcast_to(sim.cable_map, Kt.shape[:1] + sim.cable_map.shape))
+        tip, dp_du = _tip_jacobian(sim, q, Kt)
         J = dp_du[:, rows]
-        error = target[:, rows] - f["positions"][:, -1, rows]
-        JT = J.transpose(0, 2, 1)
-        du = np.linalg.solve(JT @ J, JT @ error[..., None])[..., 0]  # normal equations
+        error = target[:, rows] - tip[:, rows]
+        if J.shape[2] > J.shape[1]:
+            du, null = _least_norm_step(sim, J, error, u, q, rows)
+            converged = np.abs(du - null).max() < tol and np.abs(null).max() < NULL_RTOL * max(1.0, np.abs(u).max())
+        else:
+            JT = J.transpose(0, 2, 1)
+            du = np.linalg.solve(JT @ J, JT @ error[..., None])[..., 0]  # normal equations
+            converged = np.max(np.abs(du)) < tol
         u = u + du
-        if np.max(np.abs(du)) < tol:
-            return u, f["positions"][:, -1], dp_du
+        if converged:
+            return u, tip, dp_du
     raise RuntimeError(f"static fit did not converge in {max_iter} Gauss-Newton steps")
 
 
 def static_tip(sim, u):
-    """Equilibrium tip position for constant actuation u (B, 2) -> (B, 3)."""
+    """Equilibrium tip position for constant actuation u (B, m) -> (B, 3)."""
     return sim.kinematics.tip_positions(equilibrium(sim, u)[0])
 
 
 def inverse_static(sim, p, tol=1e-10, max_iter=50, max_residual=None):
-    """Least-squares actuation whose equilibrium tip is closest to p (B, 3) -> (B, 2).
+    """Least-squares actuation whose equilibrium tip is closest to p (B, 3) -> (B, m).
 
-    Gauss-Newton from the gravity-free arc through p (S2, S3). A point whose best fit is
-    farther than ``max_residual`` (m; default MAX_RESIDUAL x the rod's length) from p, or
-    that needs |u| beyond the simulator's bound, is outside the static workspace:
+    Gauss-Newton from the gravity-free arc through p (S2, S3); where several u reach p
+    (more than three inputs), the least-norm one near that start (S4). A point whose best
+    fit is farther than ``max_residual`` (m; default MAX_RESIDUAL x the rod's length) from
+    p, or that turns the rod beyond a full circle, is outside the static workspace:
     ValueError with the residual of the nearest equilibrium found."""
     if max_residual is None:
         max_residual = MAX_RESIDUAL * sim.robot.length
@@ -110,7 +162,7 @@ def inverse_static(sim, p, tol=1e-10, max_iter=50, max_residual=None):
             np.concatenate,
             zip(*(_fit_points(sim, p[i : i + 1], u0[i : i + 1], tol, max_iter, fallback=True) for i in range(len(p)))),
         )
-    outside = np.flatnonzero(~(residual <= max_residual) | (np.linalg.norm(u, axis=-1) > sim.u_bound))
+    outside = np.flatnonzero(~(residual <= max_residual) | (sim.free_turning(u) > 2 * np.pi))
     if len(outside):
         i = outside[0]
         nearest = _nearest_equilibrium(sim, p[i], u0[i])
@@ -136,7 +188,7 @@ def _fit_points(sim, p, u0, tol, max_iter, fallback=False):
 
 def _nearest_equilibrium(sim, p, u0) -> float:
     """Distance (m) from p to the closest equilibrium tip a bounded local search finds from u0."""
-    bound = sim.u_bound / np.sqrt(2)  # the box inside the disc |u| <= u_bound
+    bound = sim.u_bound / np.sqrt(sim.n_inputs)  # the box inside the ball |u| <= u_bound
     fit = least_squares(lambda u: static_tip(sim, u[None])[0] - p, np.clip(u0, -bound, bound), bounds=(-bound, bound))
     return float(np.linalg.norm(fit.fun))
 
@@ -145,7 +197,9 @@ def static_lift(sim, yz, u_max: float = U_MAX):
     """The equilibrium whose tip has lateral position yz (B, 2): tip p (B, 3), actuation
     u (B, 2) and d p / d(y, z) (B, 3, 2), for lifting y-z paths to 3D.
 
-    Raises ValueError for a point outside the static workspace |u_i| <= u_max."""
+    Raises ValueError for a point outside the static workspace |u_i| <= u_max, or for a rod
+    with other than two inputs (whose tip reaches a y-z point at many heights)."""
+    _two_inputs(sim, "static_lift")
     r = sim.robot
     u = 2 * yz / r.length**2 * r.bending_stiffness / r.cable_radius  # small-deflection guess
     try:
@@ -158,11 +212,21 @@ def static_lift(sim, yz, u_max: float = U_MAX):
     return tip, u, dp_du @ np.linalg.inv(dp_du[:, 1:])
 
 
+def _two_inputs(sim, name):
+    """ValueError unless the rod has two inputs: a (u1, u2) grid and a y-z point each fix one equilibrium."""
+    if sim.n_inputs != 2:
+        raise ValueError(
+            f"{name} needs a rod with 2 inputs; {sim.robot.name!r} has {sim.n_inputs} "
+            "(use inverse_static, the least-norm inverse, for it)"
+        )
+
+
 class StaticTable:
     """Equilibrium tip p(u) on [-u_range, u_range]^2, sampled every ``step`` N, as bicubic
     splines: inverse statics on millions of points in seconds instead of hours."""
 
     def __init__(self, sim, u_range: float = 6.0, step: float = 0.2, progress: bool = False):
+        _two_inputs(sim, "StaticTable")
         self.robot, self.u_range = sim.robot, u_range
         grid = np.linspace(-u_range, u_range, int(round(2 * u_range / step)) + 1)
         spec = dict(simulator=sim.spec(), u_range=u_range, step=step, version=STATICS_VERSION)

@@ -18,19 +18,39 @@ from softflow.rod.robots import Robot
 MM = 1e-3  # m
 
 
-def arc_tip(u, robot: Robot) -> np.ndarray:
-    """Tip of the circular arc of curvature |u| r / EI bent towards (u_1, u_2): (B, 2) -> (B, 3).
+def arc_disk_positions(u, robot: Robot) -> np.ndarray:
+    """Ends of the rod's segments (its disks, the tip last) without gravity: (B, m) -> (B, S, 3).
 
-    A tip-anchored cable loads the rod with a constant moment |u| r, so without
-    gravity the rod takes this arc exactly."""
+    A cable group anchored at s_g loads [0, s_g] with the constant moment u_g r, so segment j
+    is a circular arc of curvature r / EI times the sum of u_g over the groups that pass it,
+    bent towards that sum; the arcs are chained by Rodrigues' rotation."""
     u = np.asarray(u, float)
-    magnitude = np.linalg.norm(u, axis=-1)
-    if np.any(magnitude == 0):
-        raise ValueError("arc_tip needs a non-zero actuation")
-    kappa = magnitude * robot.cable_radius / robot.bending_stiffness
-    angle = kappa * robot.length
-    lateral = (1 - np.cos(angle)) / kappa
-    return np.stack([np.sin(angle) / kappa, lateral * u[:, 0] / magnitude, lateral * u[:, 1] / magnitude], -1)
+    pairs = u.reshape(len(u), -1, 2)  # (B, G, 2), base outwards
+    anchors = np.array(sorted(set(robot.anchors)))
+    rotation, position, disks = np.broadcast_to(np.eye(3), (len(u), 3, 3)), np.zeros((len(u), 3)), []
+    for end, length in zip(robot.segment_ends, robot.segment_lengths):
+        kappa = pairs[:, anchors >= end].sum(1) * robot.cable_radius / robot.bending_stiffness  # (B, 2)
+        magnitude = np.linalg.norm(kappa, axis=-1)
+        y, z = (np.divide(kappa, magnitude[:, None], out=np.zeros_like(kappa), where=magnitude[:, None] > 0)).T
+        angle = magnitude * length
+        # chord: (sin t, (1 - cos t) d) / kappa, written with sinc so a straight segment needs no division
+        along = length * np.sinc(angle / np.pi)
+        lateral = length * angle / 2 * np.sinc(angle / (2 * np.pi)) ** 2
+        chord = np.stack([along, lateral * y, lateral * z], -1)
+        position = position + (rotation @ chord[..., None])[..., 0]
+        disks.append(position)
+        # turn by the angle about e1 x d = (0, -z, y): R = I + sin t A + (1 - cos t) A^2
+        axis = np.zeros((len(u), 3, 3))
+        axis[:, 0, 1], axis[:, 0, 2], axis[:, 1, 0], axis[:, 2, 0] = -y, -z, y, z
+        turn = np.eye(3) + np.sin(angle)[:, None, None] * axis + (1 - np.cos(angle))[:, None, None] * axis @ axis
+        rotation = rotation @ turn
+    return np.stack(disks, 1)
+
+
+def arc_tip(u, robot: Robot) -> np.ndarray:
+    """Tip of the gravity-free piecewise circular arc under u: (B, m) -> (B, 3); for cables
+    anchored at the tip, one arc of curvature |u| r / EI bent towards (u_1, u_2)."""
+    return arc_disk_positions(u, robot)[:, -1]
 
 
 def euler_bernoulli_frequencies(robot: Robot, n_modes: int) -> np.ndarray:
@@ -91,7 +111,7 @@ def tip_error(X, reference) -> np.ndarray:
 
 
 def convergence_study(robot: Robot, u, reference_options: dict, variants: dict[str, list[dict]]) -> dict:
-    """Max tip error (m) of each option set against a finer reference simulator, on u (B, T, 2)."""
+    """Max tip error (m) of each option set against a finer reference simulator, on u (B, T, m)."""
     reference = Simulator(robot, **reference_options).rollout(u)
     return {
         name: [float(tip_error(Simulator(robot, **options).rollout(u), reference).max()) for options in option_list]
@@ -100,11 +120,11 @@ def convergence_study(robot: Robot, u, reference_options: dict, variants: dict[s
 
 
 def released_energy(robot: Robot, u_bend, n_steps: int, **options) -> np.ndarray:
-    """Total energy (J) over time of a rod released at rest from the static bend of u_bend (B, 2),
+    """Total energy (J) over time of a rod released at rest from the static bend of u_bend (B, m),
     without gravity or damping: (B, T+1); it should stay constant."""
     sim = Simulator(robot, gravity="none", damping=False, **options)
     q0 = sim.static_q(u_bend)
-    q, qd = sim.integrate(np.zeros((len(q0), n_steps, 2)), q0, np.zeros_like(q0))
+    q, qd = sim.integrate(np.zeros((len(q0), n_steps, sim.n_inputs)), q0, np.zeros_like(q0))
     B = len(q0)
     return sim.energy(q.reshape(-1, sim.nq), qd.reshape(-1, sim.nq)).reshape(B, -1)
 
@@ -115,7 +135,7 @@ def free_vibration_spectrum(robot: Robot, u_bend=(0.2, 0.0), seconds: float = 20
     sim = Simulator(robot, gravity="none", damping=False, **options)
     q0 = sim.static_q(np.array([u_bend], float))
     n_steps = int(round(seconds / sim.dt))
-    q, qd = sim.integrate(np.zeros((1, n_steps, 2)), q0, np.zeros_like(q0))
+    q, qd = sim.integrate(np.zeros((1, n_steps, sim.n_inputs)), q0, np.zeros_like(q0))
     y = sim.tip_state(q[0], qd[0])[:, 1]
     window = np.hanning(len(y))
     amplitude = np.abs(np.fft.rfft((y - y.mean()) * window))
