@@ -79,13 +79,13 @@ def colour(name, k: int = 0) -> str:
 def _plain_log(axis):
     """A log axis labelled in plain numbers (0.2, not 2 x 10^-1). Minor ticks get labels only
     where few decades are shown (every one under 0.6 decades, 2, 3 and 5 under 1.2, 2 and 5
-    under 2, none beyond), so neighbouring labels never run into each other."""
+    under 2.5, none beyond), so neighbouring labels never run into each other."""
 
     def minor(value, _):
         low, high = sorted(axis.get_view_interval())
         decades = np.log10(high / low) if low > 0 else np.inf
         mantissa = round(value / 10 ** np.floor(np.log10(value) + 1e-9))
-        shown = decades < 0.6 or mantissa in ((2, 3, 5) if decades < 1.2 else (2, 5) if decades < 2 else ())
+        shown = decades < 0.6 or mantissa in ((2, 3, 5) if decades < 1.2 else (2, 5) if decades < 2.5 else ())
         return f"{value:g}" if shown else ""
 
     axis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:g}"))
@@ -471,15 +471,15 @@ def band_lines(ax, summary, x: str, by: str, label=str):
 def against_speed(summary, coverage, labels: dict):
     """RMSE against the shapes' mean tip speed per model, with interval bands, and the
     references' coverage by the training states on a second axis."""
-    fig, ax = plt.subplots(figsize=(6, 3.6))
+    fig, ax = plt.subplots(figsize=(6.4, 3.4))
     band_lines(ax, summary, "speed", "model", lambda model: labels.get(model, model))
     ax.set(xlabel="mean tip speed of the shapes [m/s]", ylabel="RMSE [mm]", yscale="log")
     _plain_log(ax.yaxis)
     twin = ax.twinx()
     twin.plot(coverage.index, coverage.values, "k--", lw=1)
-    twin.set(ylabel="coverage by training states (dashed)", ylim=(0, 1.05))
+    twin.set(ylabel="coverage (dashed)", ylim=(0, 1.05))
     twin.grid(False)
-    ax.legend(ncol=2, loc="lower right")
+    _figure_legend(fig, ax, 4)
     return fig
 
 
@@ -488,12 +488,12 @@ def latency_curve(closed, open_loop):
     """Closed-loop RMSE (mean over the shapes, mm) against camera latency, one line per
     configuration (``closed``: indexed by latency in s, columns configurations), with the
     open loop (dashed, ``open_loop``: configuration -> mm) for comparison."""
-    fig, ax = plt.subplots(figsize=(4.6, 3.3))
+    fig, ax = plt.subplots(figsize=(4.6, 3.0))
     for k, config in enumerate(closed.columns):
         (line,) = ax.plot(closed.index * MM, closed[config], "o-", color=colour(config, k), label=f"closed, {config}")
         ax.axhline(open_loop[config], color=line.get_color(), ls="--", lw=1, label=f"open, {config}")
-    ax.set(xlabel="camera latency [ms]", ylabel="RMSE, mean of the shapes [mm]", ylim=(0, None))
-    ax.legend()
+    ax.set(xlabel="camera latency [ms]", ylabel="mean RMSE, shapes [mm]", ylim=(0, None))
+    _figure_legend(fig, ax, 2)
     return fig
 
 
