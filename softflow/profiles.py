@@ -44,7 +44,6 @@ class Profile:
     # Budget of the per-step models (MLP, RF family), which run an epoch ~10x faster than the
     # sequence models: the same data, a similar wall time. None: the same as ``train``.
     per_step_train: TrainConfig | None = None
-    twin_sensitivity_shapes: int = 4  # Table III shapes replayed per reality-gap variant (notebook 06)
     identification_seconds: float = 3.0  # s of excitation filmed for system identification (notebook 10)
 
     def train_config(self, model: str) -> TrainConfig:
@@ -69,7 +68,6 @@ PROFILES = {
         "ci",
         n_episodes=200,
         bench_episodes=64,
-        twin_sensitivity_shapes=1,
         identification_seconds=1.5,
         train=TrainConfig(epochs=4, steps_per_epoch=150, batch_size=256, warmup_steps=50, val_samples=5000, patience=3),
     ),

@@ -62,6 +62,7 @@ EXPORTS = {
         "VERDICTS",
         "row_intervals",
         "verdict_counts",
+        "gap_sensitivity",
     ],
 }
 SUBMODULES = ["plots"]

@@ -9,8 +9,10 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from softflow.hardware.twin import GAP_TERMS
 from softflow.report.tables import BASELINES, LABELS, MODELS, RF_FAMILY
 from softflow.studies import stats
+from softflow.studies.closed_loop import CAMERA_LATENCY
 from softflow.studies.study import FLOOR
 
 # ---------------------------------------------------------------------------- the sweeps (notebook 08)
@@ -101,6 +103,23 @@ def protocol_table(rows: pd.DataFrame, family: str = "shape") -> pd.DataFrame:
     table = table[table_order(table.columns)]
     table["coverage"] = part.groupby("condition", sort=False)["coverage"].mean()
     return table
+
+
+# ---------------------------------------------------------------------------- the twin's reality gap (notebook 06)
+
+
+def gap_sensitivity(rows: pd.DataFrame) -> pd.DataFrame:
+    """Mean open-loop RMSE through the camera (mm) over Table III's shapes under each reality gap
+    (rows: no gap, the typical gap, each term doubled), per configuration: the closed_loop study's
+    open cells at the nominal camera."""
+    shown = rows[
+        (rows["mode"] == "open") & (rows.family == "shape") & (rows.latency == CAMERA_LATENCY) & (rows.dropped == 0)
+    ]
+    table = shown.groupby(["gap", "gravity"]).rmse_mm.apply(pd.Series.mean).unstack()  # Series.mean: the notebook's sum
+    labels = {"none": "no gap", "typical": "typical gap", **{f"2x {t}": f"2 x {t}" for t in GAP_TERMS}}
+    table = table.reindex([g for g in labels if g in table.index]).rename(index=labels)
+    table.index.name, table.columns.name = None, None
+    return table[[g for g in ("vertical", "horizontal") if g in table.columns]]
 
 
 # ---------------------------------------------------------------------------- where a flow wins (notebook 09)

@@ -17,6 +17,7 @@ SUBMODULES = [
     "table1",
     "data_size",
     "fwd_lambda",
+    "design",
     "closed_loop",
     "twin_burst",
     "smoke",

@@ -62,12 +62,13 @@ def cells(profile_name: str) -> list[dict]:
         dict(cell, gravity=g, mode="closed", latency=latency) for g in grid["configs"] for latency in grid["latencies"]
     ]
     cells += [dict(cell, gravity=g, mode="closed", dropped=0.1) for g in grid["configs"] if grid["dropped"]]
-    return cells + [
+    cells += [
         dict(cell, gravity=g, mode=mode, gap=f"2x {term}")
         for term in grid["gaps"]
         for g in grid["configs"]
         for mode in GAP_MODES
     ]
+    return cells + [dict(cell, gravity=g, mode="open", gap="none") for g in grid["configs"]]  # what the gap costs
 
 
 def learning_options(mode: str) -> dict:
@@ -77,8 +78,11 @@ def learning_options(mode: str) -> dict:
 
 
 def _gap(name: str) -> hardware.RealityGap:
-    """ "typical" or "2x <term>": TYPICAL_GAP with that term doubled (notebook 06's sensitivity study)."""
-    return hardware.TYPICAL_GAP if name == "typical" else hardware.TYPICAL_GAP.doubled(name.removeprefix("2x "))
+    """ "typical", "none" (the plant is the model rod) or "2x <term>": TYPICAL_GAP with that term
+    doubled (notebook 06's sensitivity table reads the open-loop cells of each)."""
+    if name in ("typical", "none"):
+        return hardware.TYPICAL_GAP if name == "typical" else hardware.NO_GAP
+    return hardware.TYPICAL_GAP.doubled(name.removeprefix("2x "))
 
 
 def twin_setup(cell: dict, profile_name: str, device: str, workdir: Path):

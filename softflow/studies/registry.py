@@ -22,13 +22,25 @@ ambiguity: inverses that are genuinely ambiguous, fixed before any ran: the MLP
 fwd_lambda: RF-FWD's consistency weight, fixed before any ran: lambda 0 / 0.03 / 0.1 / 0.3 / 1
     at the full budget, 3 seeds, with what the consistency term sees (the surrogate's error,
     the one-step endpoint estimate against a short Euler rollout).
+design: the RF design choices behind the defaults (notebook 04): RF-FWD's consistency weight
+    0.1 / 0.3 / 1 / 3, RF, and RF with uniform tau, one seed each at the short budget.
 twin_burst: where the twin's loops break: the burst circle continued to a 0.2 s period, open
     loop, closed loop and learning across repetitions, scored per revolution.
 """
 
 from __future__ import annotations
 
-from softflow.studies import ambiguity, closed_loop, data_size, fwd_lambda, protocol, smoke, table1, twin_burst
+from softflow.studies import (
+    ambiguity,
+    closed_loop,
+    data_size,
+    design,
+    fwd_lambda,
+    protocol,
+    smoke,
+    table1,
+    twin_burst,
+)
 from softflow.studies.study import Study
 
 STUDIES = {
@@ -40,4 +52,5 @@ STUDIES = {
     "twin_burst": Study(twin_burst.cells, twin_burst.run, twin_burst.models),
     "ambiguity": Study(ambiguity.cells, ambiguity.run, ambiguity.models),
     "fwd_lambda": Study(fwd_lambda.cells, fwd_lambda.run, fwd_lambda.models),
+    "design": Study(design.cells, design.run, design.models),
 }
