@@ -186,7 +186,7 @@ def _train(args):
             name, profile, dataset, robot, args.gravity, ship=args.ship, progress=True
         )
         print(
-            f"{name}: {checkpoint['epochs_run']} epochs, best validation loss {checkpoint['best_val']:.4f}, "
+            f"{name}: {checkpoint['epochs_run']} epochs, best validation loss {checkpoint['best_val']:.3g}, "
             f"{checkpoint['wall_seconds'] / 60:.1f} min of training"
         )
         if args.ship:
