@@ -173,20 +173,19 @@ class Controller:
 
     @workspace_margin.setter
     def workspace_margin(self, margin: float | None):
-        """The margin, and the tip-position bounds it sets, computed here once so that a step's
-        check is one vectorised compare."""
+        """The margin, and the tip-position half-widths it sets, computed here once so that a
+        step's check is one vectorised compare."""
         if margin is not None and not margin > 0:
             raise ValueError(f"workspace_margin must be positive or None; got {margin!r}")
         self._margin = margin
         if margin is not None:
-            self._low, self._high = self._mean - margin * self._std, self._mean + margin * self._std
+            self._halfwidth = margin * self._std
 
     def _outside(self, X) -> bool:
         """Whether a tip position of states X (..., d) lies beyond the workspace margin."""
         if self._margin is None:
             return False
-        positions = X[..., : len(self._mean)]
-        return bool(((positions < self._low) | (positions > self._high)).any())
+        return bool((np.abs(X[..., : len(self._mean)] - self._mean) > self._halfwidth).any())
 
     def check_workspace(self, X, name: str = "reference"):
         """Refuse states X (..., d) far outside the training states (unit mistakes, another rod);
