@@ -39,6 +39,7 @@ class Profile:
     n_episodes: int  # training-data episodes
     episode_seconds: float = 5.0  # s, length of one excitation episode
     bench_episodes: int = 64  # episodes timed in notebook 01's speed summary
+    validation_seconds: float = 5.0  # s, notebook 01's convergence episode and energy release
     seed: int = 0
     train: TrainConfig = TrainConfig()
     # Budget of the per-step models (MLP, RF family), which run an epoch ~10x faster than the
@@ -67,7 +68,8 @@ PROFILES = {
     "ci": Profile(
         "ci",
         n_episodes=200,
-        bench_episodes=64,
+        bench_episodes=16,
+        validation_seconds=1.0,
         identification_seconds=1.5,
         train=TrainConfig(epochs=4, steps_per_epoch=150, batch_size=256, warmup_steps=50, val_samples=5000, patience=3),
     ),
