@@ -7,7 +7,7 @@ from pathlib import Path
 
 from softflow import data, hardware, training
 from softflow.control import closed_loop as loop
-from softflow.control.planning import Controller
+from softflow.control.planning import WORKSPACE_MARGIN, Controller
 from softflow.data.references import (
     hardware_references,
 )
@@ -100,7 +100,10 @@ def twin_setup(cell: dict, profile_name: str, device: str, workdir: Path):
         fit = _identified_twin(sim, gap, profile.identification_seconds, workdir)
         options["calibration"] = Calibration.identified(sim, fit)
         identified = {f"identified_{term}": getattr(fit.gap, term) for term in identification.FITTED}
-    controller = Controller(model, cell["model"], robot=HW_ROBOT, gravity=gravity)
+    # closed-estimate conditions the model on the measured state of a rod it sets swinging, out
+    # of the training workspace within the run: measured, not refused (docs/assumptions.md)
+    margin = None if options.get("condition") == "estimate" else WORKSPACE_MARGIN
+    controller = Controller(model, cell["model"], robot=HW_ROBOT, gravity=gravity, workspace_margin=margin)
     return controller, sim, gap, dict(options, camera_latency=cell["latency"], dropped=cell["dropped"]), identified
 
 
