@@ -4,7 +4,10 @@
    default accuracy: wall time and episodes/s;
 2. the same rod and input in PyElastica (benchmarks/pyelastica_rod.py, run in its own
    venv .venv-elastica): wall time per simulated second, our speed-up (one episode, and
-   per episode in a batch of 256), and the tip-trajectory difference of a 2 s response.
+   per episode in a batch of 256), and the tip-trajectory difference of a 2 s response;
+3. the two-segment rod beside the one-segment rod on the same batch (default 256 episodes
+   x 5 s of polynomial excitation, the one-segment rod driven by the tip pair): wall times
+   and their ratio, each the faster of two alternating runs.
 
 Writes figures/bench/simulator.csv and prints a summary.
 """
@@ -24,7 +27,7 @@ from results_file import write_results
 
 from softflow.data.excitation import polynomial_excitation
 from softflow.rod.dynamics import Simulator
-from softflow.rod.robots import DT, SIM_ROBOT
+from softflow.rod.robots import DT, SIM_ROBOT, TWO_SEGMENT_ROD
 
 HERE = Path(__file__).resolve().parent
 ELASTICA_PYTHON = HERE.parent / ".venv-elastica" / "bin" / "python"
@@ -50,10 +53,33 @@ def run_pyelastica(u: np.ndarray) -> dict:
         return dict(tip=np.load(Path(tmp) / "tip.npy"), wall_seconds=float(out.stdout.strip().splitlines()[-1]))
 
 
+def two_segment_side_by_side(episodes: int, seconds: float) -> dict:
+    """Wall time (s) of a batched rollout of the two-segment rod and of the one-segment rod
+    on the same episodes: u (B, T, 4) for the former, its tip pair u[..., 2:] for the latter."""
+    rng = np.random.default_rng(1)
+    n_steps = int(round(seconds / DT))
+    u = np.concatenate([polynomial_excitation(episodes, n_steps, rng) for _ in range(2)], -1)  # (B, T, 4)
+    rods = {"one_segment": (Simulator(SIM_ROBOT), u[..., 2:]), "two_segment": (Simulator(TWO_SEGMENT_ROD), u)}
+    walls = {name: np.inf for name in rods}
+    for _ in range(2):  # alternate, keep the faster run of each: load on a shared machine hits both alike
+        for name, (sim, inputs) in rods.items():
+            start = time.perf_counter()
+            sim.rollout(inputs)
+            walls[name] = min(walls[name], time.perf_counter() - start)
+    return dict(
+        episodes=episodes,
+        seconds_each=seconds,
+        one_segment_wall_seconds=walls["one_segment"],
+        two_segment_wall_seconds=walls["two_segment"],
+        ratio=walls["two_segment"] / walls["one_segment"],
+    )
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--episodes", type=int, default=3000)
     parser.add_argument("--seconds", type=float, default=5.0)
+    parser.add_argument("--two-segment-episodes", type=int, default=256)
     args = parser.parse_args()
     results = dict(machine=f"{platform.processor() or platform.machine()}, {platform.node()}", cores=2)
 
@@ -101,6 +127,11 @@ def main():
             f"({e['max_tip_difference_percent_L']:.2f} % of L), "
             f"RMS {e['rms_tip_difference_mm']:.2f} mm"
         )
+    results["two_segment"] = side = two_segment_side_by_side(args.two_segment_episodes, args.seconds)
+    print(
+        f"two-segment rod: {side['two_segment_wall_seconds']:.1f} s against {side['one_segment_wall_seconds']:.1f} s "
+        f"for the one-segment rod on the same {side['episodes']} episodes ({side['ratio']:.2f}x)"
+    )
     write_results("simulator", results)
     return 0
 

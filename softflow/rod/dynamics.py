@@ -53,7 +53,8 @@ class Simulator:
         ``robot.n_inputs`` entries.
     gravity: "vertical" (along +x), "horizontal" (along -z) or "none".
     order: highest Legendre degree of each curvature in each of the rod's segments (q has
-        2 (order+1) entries per segment).
+        2 (order+1) entries per segment); default 3 for a one-segment rod, 2 for more (two
+        segments then carry 6 coefficients per curvature against 4, see docs/assumptions.md).
     n_segments: segments of the spatial integration, over the whole rod (shared among the
         rod's segments by length).
     substeps: time steps per ``dt`` sample.
@@ -67,7 +68,7 @@ class Simulator:
         robot: Robot,
         gravity: str = "vertical",
         *,
-        order: int = 3,
+        order: int | None = None,
         n_segments: int = 32,
         substeps: int = 4,
         dt: float = DT,
@@ -78,6 +79,8 @@ class Simulator:
         if not isinstance(robot, Robot):
             raise ValueError(f"robot must be a softflow.rod.Robot (e.g. SIM_ROBOT); got {type(robot).__name__}")
         check_choice(gravity, "gravity", GRAVITY_DIRECTIONS)
+        if order is None:
+            order = 3 if len(robot.segment_lengths) == 1 else 2
         for name, value, low in (
             ("order", order, 0),
             ("n_segments", n_segments, 1),
@@ -317,9 +320,13 @@ class Simulator:
         return statics.static_tip(self, self._actuation(u, (None, self.n_inputs)))
 
     def inverse_static(self, p, tol=1e-10, max_iter=50, max_residual=None):
-        """Least-squares actuation whose equilibrium tip is closest to p (B, 3) -> (B, 2);
-        ValueError for a point farther than ``max_residual`` (m; default a quarter of the
-        rod's length) from every equilibrium tip: wrong units or frame."""
+        """Actuation (B, m) whose equilibrium tip is closest to p (B, 3), least squares; for a
+        rod with more than three inputs (``TWO_SEGMENT_ROD``), which reaches a point with a
+        curve of u, the u of least norm |u| among those that reach it (the stationary point
+        of |u| on that curve that Gauss-Newton with a null-space Newton step finds from the
+        tip cables' arc, docs/simulator.md S4). ValueError for a point farther than
+        ``max_residual`` (m; default a quarter of the rod's length) from every equilibrium
+        tip: wrong units or frame."""
         p, _ = as_real_array(p, "p", (None, 3))
         if p.shape[0] == 0:
             raise ValueError("p must hold at least one point (its batch axis is empty)")
@@ -327,12 +334,12 @@ class Simulator:
 
     def static_lift(self, yz, u_max: float = U_MAX):
         """The equilibrium whose tip has lateral position yz (B, 2): tip p (B, 3), actuation
-        u (B, 2) and d p / d(y, z) (B, 3, 2), for lifting y-z paths to 3D."""
+        u (B, 2) and d p / d(y, z) (B, 3, 2), for lifting y-z paths to 3D (two-input rods)."""
         yz, _ = as_real_array(yz, "yz", (None, 2))
         return statics.static_lift(self, yz, u_max)
 
     def static_table(self) -> statics.StaticTable:
-        """The tabulated statics of this rod (the RF-Physical prior), built once per simulator."""
+        """The tabulated statics of this two-input rod (the RF-Physical prior), built once per simulator."""
         if self._static_table is None:
             self._static_table = statics.StaticTable(self)
         return self._static_table

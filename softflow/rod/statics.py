@@ -28,7 +28,7 @@ MAX_RESIDUAL = 0.25
 # stiffness's forward difference of gravity (step 1e-6) leaves round-off of that size in J.
 NULL_RTOL = 1e-8  # converged when the null-space step is below this fraction of |u|
 _CURVATURE_STEP = 1e-3  # N, forward difference of J along the null space (relative error ~1e-4)
-_HESSIAN_FLOOR = 0.1  # reduced Hessian eigenvalues floored here: a concave stretch falls back to the plain step
+_HESSIAN_FLOOR = 0.1  # reduced Hessian eigenvalues floored here: a concave stretch still steps downhill in |u|
 
 
 def gravity_force(sim, q):
