@@ -22,6 +22,10 @@ REPO = Path(__file__).resolve().parent.parent
 # Generated datasets, caches and user-trained models (git-ignored): the one cache root, which
 # every layer writes under; $SOFTFLOW_DATA moves it (e.g. for an installed package).
 DATA_DIR = Path(os.environ.get("SOFTFLOW_DATA", REPO / "data"))
+# Committed copies of small caches that cost minutes to compute and depend on nothing but their
+# key (reference trajectories and static tables: thousands of static solves): read when the
+# cache itself lacks the file, so a fresh clone plans at once; a run never writes here.
+SHIPPED_CACHE = REPO / "cache"
 
 
 def content_key(spec: dict, length: int = 16) -> str:
@@ -68,13 +72,16 @@ def read_npz(path) -> dict | None:
 
 
 def cached_arrays(path, compute, valid=None) -> dict:
-    """The arrays cached at ``path``; when they are missing, corrupt or fail ``valid``, those of
-    ``compute()`` (a dict of arrays), saved there first and read back, so both paths return the same."""
-    arrays = read_npz(path)
-    if arrays is None or (valid is not None and not valid(arrays)):
-        write_npz(path, **compute())
-        arrays = read_npz(path)
-    return arrays
+    """The arrays cached at ``path``, else its committed copy in ``SHIPPED_CACHE`` (same name, so
+    the same content key); when both are missing, corrupt or fail ``valid``, those of
+    ``compute()`` (a dict of arrays), saved at ``path`` first and read back, so every way returns
+    the same."""
+    for source in (path, SHIPPED_CACHE / Path(path).name):
+        arrays = read_npz(source)
+        if arrays is not None and (valid is None or valid(arrays)):
+            return arrays
+    write_npz(path, **compute())
+    return read_npz(path)
 
 
 def cache_file(directory, kind: str, spec: dict) -> Path:

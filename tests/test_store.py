@@ -50,6 +50,39 @@ def test_cached_arrays_compute_once_and_recompute_what_is_corrupt_or_invalid(tmp
     assert len(calls) == 3
 
 
+def test_a_shipped_copy_serves_a_missing_cache_and_a_bad_one_is_ignored(tmp_path, monkeypatch):
+    shipped, cache = tmp_path / "shipped", tmp_path / "data"
+    monkeypatch.setattr(store, "SHIPPED_CACHE", shipped)
+    store.write_npz(shipped / "refs-abc.npz", a=np.arange(4.0))
+    calls = []
+
+    def compute():
+        calls.append(1)
+        return dict(a=np.zeros(2))
+
+    assert np.array_equal(store.cached_arrays(cache / "refs-abc.npz", compute)["a"], np.arange(4.0)) and not calls
+    assert not (cache / "refs-abc.npz").exists()  # the shipped copy is only read
+    (shipped / "refs-abc.npz").write_bytes(b"not a zip")
+    assert np.array_equal(store.cached_arrays(cache / "refs-abc.npz", compute)["a"], np.zeros(2)) and calls == [1]
+
+
+def test_the_shipped_evaluation_references_are_what_their_key_computes():
+    """The committed cache of Table I's references holds what computing its key gives today:
+    its circle is rebuilt and compared (the rest follow the same key and code)."""
+    from softflow.data import references
+    from softflow.rod.dynamics import Simulator
+
+    sim = Simulator(SIM_ROBOT)
+    spec = dict(simulator=sim.spec(), kind="evaluation", build="_evaluation_set", version=references.REFERENCE_VERSION)
+    path = store.cache_file(store.SHIPPED_CACHE, "references-evaluation", spec)
+    shipped = store.read_npz(path)
+    assert shipped is not None, f"{path} is not committed: copy it from data/ after a run"
+    assert str(shipped["names"][0]) == "circle"
+    circle = references.shape_reference(sim, "circle")
+    np.testing.assert_allclose(shipped["states_0"], circle.states, rtol=0, atol=1e-8)  # this CPU's last bits
+    assert np.array_equal(shipped["mask_0"], circle.mask)
+
+
 def test_dataset_key_follows_parameters_and_versions_not_the_name(monkeypatch):
     key = data.dataset_path(PAPER).stem
     assert data.dataset_path(PAPER, dataclasses.replace(SIM_ROBOT, name="renamed")).stem == key
