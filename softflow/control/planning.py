@@ -41,9 +41,12 @@ class Controller:
     ``noise="seeded"`` draws one z per trajectory from ``seed`` and uses it at every step,
     ``noise="fresh"`` draws a new z for every step; ``sample`` gives independent draws.
     ``robot`` and ``gravity``: the rod the model was trained for (RF-Physical's prior is
-    its statics, tabulated once per controller). ``u_limit``: the actuator range (N) plans
-    are clipped to. ``observe``: what the model was shown of a tip path, applied to every
-    reference ``plan`` and ``sample`` get (e.g. ``variants.Variant.observe``: velocities
+    its statics, tabulated once per controller; None for a model of recorded runs, which has
+    none). ``u_limit``: the actuator range (N) plans are clipped to, +-u_limit; ``u_range``:
+    (low, high), each a number or one per input, clips to that box instead (a recording's
+    inputs, e.g. motor positions from 0 to 30 mm, need not be symmetric about 0).
+    ``observe``: what the model was shown of a tip path, applied to every reference ``plan``
+    and ``sample`` get (e.g. ``variants.Variant.observe``: velocities
     hidden, or by finite differences, which need the path); None: the full state. ``step``
     takes its two states as the model sees them. ``workspace_margin``: references, and
     states given to ``step``, farther than this many training standard deviations are
@@ -59,15 +62,28 @@ class Controller:
         robot: Robot = SIM_ROBOT,
         gravity: str = "vertical",
         u_limit: float = U_MAX,
+        u_range=None,
         observe=None,
         workspace_margin: float | None = WORKSPACE_MARGIN,
     ):
         if not u_limit > 0:
             raise ValueError(f"u_limit must be a positive actuator range in N; got {u_limit!r}")
+        if model.needs_statics and robot is None:
+            raise ValueError(
+                f"{name} learns a residual around the static prior of a simulated rod: it needs that rod "
+                "(robot=), and a model of recorded runs has none"
+            )
         self.model, self.name, self.seed, self.robot, self.gravity = model.eval(), name, seed, robot, gravity
         norm, p = model.state_norm, model.dims.position
         self._mean, self._std = (b.numpy()[:p].astype(np.float64) for b in (norm.mean, norm.std))  # tip position
         self.u_limit, self.observe, self.workspace_margin = float(u_limit), observe, workspace_margin
+        self._low, self._high, self._range = -self.u_limit, self.u_limit, f"the actuator range +-{self.u_limit:g} N"
+        if u_range is not None:
+            low, high = (np.broadcast_to(np.asarray(b, np.float64), (model.dims.inputs,)) for b in u_range)
+            if not (np.isfinite(low).all() and np.isfinite(high).all() and (low < high).all()):
+                raise ValueError(f"u_range must be (low, high) with low < high for each input; got {u_range!r}")
+            self._low, self._high, self.u_limit = low, high, float(np.abs([low, high]).max())
+            self._range = f"the input range {low.tolist()} to {high.tolist()}"
         self.generative = isinstance(model, RectifiedFlow)
         self.statics = Simulator(robot, gravity).static_table() if model.needs_statics else None
         self.lean = LeanFlow(model) if self.generative else LeanMLP(model) if isinstance(model, InverseMLP) else None
@@ -100,15 +116,20 @@ class Controller:
         )
         u = u.astype(np.float64)
         if clip:
-            if np.abs(u).max() > self.u_limit:
-                warnings.warn(
-                    f"{self.name}: {int(np.sum(np.abs(u) > self.u_limit))} of {u.size} stepped u values "
-                    f"exceed the actuator range +-{self.u_limit:g} N and were clipped",
-                    SaturationWarning,
-                    stacklevel=2,
-                )
-            u = np.clip(u, -self.u_limit, self.u_limit)
+            u = self._clip(u, "stepped")
         return u[0] if unbatched else u
+
+    def _clip(self, u, what: str) -> np.ndarray:
+        """u (..., m) clipped to the input range, with a ``SaturationWarning`` that counts the
+        values clipped (3 levels up: the caller of ``plan`` or ``step``)."""
+        clipped = int(np.sum((u < self._low) | (u > self._high)))
+        if clipped:
+            warnings.warn(
+                f"{self.name}: {clipped} of {u.size} {what} u values exceed {self._range} and were clipped",
+                SaturationWarning,
+                stacklevel=3,
+            )
+        return np.clip(u, self._low, self._high)
 
     def plan(
         self, reference, *, noise: str = "zero", seed: int | None = None, n_samples: int = 1, **options
@@ -119,7 +140,7 @@ class Controller:
         estimate of E[u | x_t, x_t+1], the plan of least squared actuation error.
 
         Options: ``steps`` (Euler steps of a flow, >= 1). u beyond the actuator range
-        ``u_limit`` is clipped, with a ``SaturationWarning`` that counts the samples."""
+        (``u_limit`` or ``u_range``) is clipped, with a ``SaturationWarning`` that counts the samples."""
         check_choice(noise, "noise", NOISE)
         if not (isinstance(n_samples, int) and n_samples >= 1):
             raise ValueError(f"n_samples must be a positive integer; got {n_samples!r}")
@@ -129,15 +150,7 @@ class Controller:
             raise ValueError("n_samples > 1 averages random draws: use noise='seeded' or 'fresh'")
         else:
             u = self.sample(reference, n_samples, noise=noise, seed=seed, **options).mean(0)
-        clipped = int(np.sum(np.abs(u) > self.u_limit))
-        if clipped:
-            warnings.warn(
-                f"{self.name}: {clipped} of {u.size} planned u values exceed the actuator range "
-                f"+-{self.u_limit:g} N and were clipped",
-                SaturationWarning,
-                stacklevel=2,
-            )
-        return np.clip(u, -self.u_limit, self.u_limit)
+        return self._clip(u, "planned")
 
     def sample(self, reference, n: int, *, noise: str = "seeded", seed: int | None = None, **options) -> np.ndarray:
         """``n`` plans from independent noise draws: (n, T, m) or (n, B, T, m), not clipped.
