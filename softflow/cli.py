@@ -4,6 +4,7 @@
   softflow train --profile paper mlp rf-fwd            train models; the last lines are their checkpoints
   softflow train --robot hw --gravity horizontal rf-fwd   a hardware-twin model
   softflow train --ship rf-fwd                         retrain a shipped model into checkpoints/ (maintainers)
+  softflow train mlp --recordings my_runs/ --profile ci   a model of recorded runs (docs/recordings.md)
   softflow sweep table1 --profile paper                a study's cells as Dask tasks (docs/sweeps.md)
   softflow models [--cards]                            the shipped checkpoints (and their model cards)
   softflow plan rf-fwd --shape circle --out u.csv      planned inputs for a shape, one row per sample
@@ -26,6 +27,7 @@ import numpy as np
 import pandas as pd
 
 from softflow import control, data, hardware, training
+from softflow.data import recordings
 from softflow.models.checkpoints import checkpoint_path
 from softflow.models.registry import CONTROLLERS, MODELS
 from softflow.profiles import PROFILES, get_profile
@@ -77,10 +79,30 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub.add_argument("models", nargs="+", metavar="MODEL", choices=sorted(MODELS), help=", ".join(sorted(MODELS)))
     _rod_options(sub)
+    sub.set_defaults(robot=None, gravity=None)  # None: not given, so --recordings can refuse them
     sub.add_argument(
         "--ship",
         action="store_true",
         help="write the paper-profile checkpoints committed in checkpoints/ and their model cards (maintainers)",
+    )
+    recorded = sub.add_argument_group(
+        "recorded runs", "train on a folder of recordings (docs/recordings.md) instead of a simulated rod"
+    )
+    recorded.add_argument("--recordings", type=Path, metavar="DIR", help="the folder of recordings (.csv, .parquet)")
+    recorded.add_argument(
+        "--inputs",
+        type=_columns,
+        metavar="COLS",
+        help="input columns, comma-separated (default: those named u...)",
+    )
+    recorded.add_argument(
+        "--tip",
+        type=_columns,
+        metavar="COLS",
+        help="tip columns in m, comma-separated (default: x_m, y_m, z_m)",
+    )
+    recorded.add_argument(
+        "--dt", type=_positive("seconds"), metavar="S", help="the period to resample to (default: the commands')"
     )
 
     sub = verb("sweep", _sweep, "run a study's cells as Dask tasks; the result CSV is the last line", sweep.__doc__)
@@ -149,20 +171,32 @@ def _shape_options(sub):
     sub.add_argument("--shape", required=True, choices=sorted(data.SHAPES), help="the y-z shape to trace")
     sub.add_argument(
         "--size",
-        type=_positive,
+        type=_positive("metres"),
         help=f"half-extent in m, about the rest tip (default: {data.HARDWARE_SIZE:g} for hw, else {data.SIZE:g})",
     )
     sub.add_argument("--out", type=Path, required=True, metavar="FILE.csv", help="the CSV to write (replaced)")
 
 
-def _positive(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        value = float("nan")
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"expected a positive number of metres; got {text!r}")
-    return value
+def _positive(unit: str):
+    """The argument type of a positive number of ``unit``."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = float("nan")
+        if not (math.isfinite(value) and value > 0):
+            raise argparse.ArgumentTypeError(f"expected a positive number of {unit}; got {text!r}")
+        return value
+
+    return parse
+
+
+def _columns(text: str) -> list[str]:
+    names = [name.strip() for name in text.split(",")]
+    if not all(names):
+        raise argparse.ArgumentTypeError(f"expected column names separated by commas; got {text!r}")
+    return names
 
 
 def _data(args):
@@ -175,24 +209,43 @@ def _data(args):
 
 def _train(args):
     """Each model trained (or its current checkpoint reused); the last lines are the checkpoints
-    ``load_controller`` now picks, one per model in order."""
+    ``load_controller`` now picks, one per model in order. With ``--recordings``, on those runs
+    (no rod: ``--robot`` and ``--gravity`` are refused, and nothing ships)."""
     if args.ship and args.profile != "paper":
         raise ValueError(f"--ship writes the paper profile's checkpoints; got --profile {args.profile}")
-    profile, robot = get_profile(args.profile), ROBOTS[args.robot]
-    dataset = data.DatasetOnDemand(profile, robot, args.gravity)  # simulated only if a model must be trained
+    profile = get_profile(args.profile)
+    if args.recordings is None:
+        given = [f"--{option}" for option in ("inputs", "tip", "dt") if getattr(args, option) is not None]
+        if given:
+            raise ValueError(f"{', '.join(given)} describe recordings; they need --recordings DIR")
+        robot, gravity = ROBOTS[args.robot or SIM_ROBOT.name], args.gravity or "vertical"
+        dataset = data.DatasetOnDemand(profile, robot, gravity)  # simulated only if a model must be trained
+        found = dict(robot=robot, gravity=gravity)
+    else:
+        given = [f"--{option}" for option in ("robot", "gravity", "ship") if getattr(args, option)]
+        if given:
+            raise ValueError(
+                f"{', '.join(given)} cannot go with --recordings: recorded runs have no simulated rod, and "
+                "their models are trained into data/checkpoints/, never shipped"
+            )
+        robot = gravity = None
+        dataset = recordings.load_dataset(args.recordings, inputs=args.inputs, tip=args.tip, dt=args.dt)
+        found = dict(recordings=dataset)
+        print(
+            f"recordings {dataset.key}: {len(dataset.u)} episodes of {dataset.u.shape[1]} steps of "
+            f"{dataset.dt:g} s, {dataset.dims.inputs} inputs, a {dataset.dims.position}-D tip"
+        )
     paths = []
     for name in args.models:
-        _, checkpoint = training.ensure_trained(
-            name, profile, dataset, robot, args.gravity, ship=args.ship, progress=True
-        )
+        _, checkpoint = training.ensure_trained(name, profile, dataset, robot, gravity, ship=args.ship, progress=True)
         print(
             f"{name}: {checkpoint['epochs_run']} epochs, best validation loss {checkpoint['best_val']:.3g}, "
             f"{checkpoint['wall_seconds'] / 60:.1f} min of training"
         )
         if args.ship:
-            paths.append(checkpoint_path(name, profile.name, rod_folder(robot, args.gravity), shipped=True))
+            paths.append(checkpoint_path(name, profile.name, rod_folder(robot, gravity), shipped=True))
         else:
-            paths.append(control.find_trained(name, profile.name, robot, args.gravity)[0])
+            paths.append(control.find_trained(name, profile.name, **found)[0])
     if args.ship:
         write_text(model_cards.README, model_cards.model_cards())
     print("\n".join(map(str, paths)))

@@ -4,6 +4,7 @@ run the plan in the simulator from rest, and score it."""
 from __future__ import annotations
 
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -11,7 +12,8 @@ import torch
 
 from softflow.checks import as_real_array, check_choice
 from softflow.control.metrics import actuation_mae, fitting_lag, input_energy, phase_lag, tracking_rmse
-from softflow.data.dataset import dataset_path, gather_windows
+from softflow.data.dataset import Dataset, dataset_path, gather_windows
+from softflow.data.recordings import load_dataset as load_recordings
 from softflow.models.baselines import InverseMLP, LeanMLP
 from softflow.models.checkpoints import find_checkpoint, identity, load_checkpoint, model_from_checkpoint
 from softflow.models.common import one_thread
@@ -80,10 +82,12 @@ class Controller:
         self._low, self._high, self._range = -self.u_limit, self.u_limit, f"the actuator range +-{self.u_limit:g} N"
         if u_range is not None:
             low, high = (np.broadcast_to(np.asarray(b, np.float64), (model.dims.inputs,)) for b in u_range)
-            if not (np.isfinite(low).all() and np.isfinite(high).all() and (low < high).all()):
-                raise ValueError(f"u_range must be (low, high) with low < high for each input; got {u_range!r}")
+            if not (np.isfinite(low).all() and np.isfinite(high).all() and (low <= high).all()):
+                raise ValueError(f"u_range must be (low, high) with low <= high for each input; got {u_range!r}")
             self._low, self._high, self.u_limit = low, high, float(np.abs([low, high]).max())
-            self._range = f"the input range {low.tolist()} to {high.tolist()}"
+            symmetric = (low == -high).all() and (high == high[0]).all()
+            bounds = [f"{a:g} to {b:g}" for a, b in zip(low, high)]
+            self._range = f"the input range +-{high[0]:g}" if symmetric else f"the input ranges {', '.join(bounds)}"
         self.generative = isinstance(model, RectifiedFlow)
         self.statics = Simulator(robot, gravity).static_table() if model.needs_statics else None
         self.lean = LeanFlow(model) if self.generative else LeanMLP(model) if isinstance(model, InverseMLP) else None
@@ -249,41 +253,96 @@ def find_trained(
     robot: Robot = SIM_ROBOT,
     gravity: str = "vertical",
     model_kwargs: dict | None = None,
+    *,
+    recordings: Dataset | None = None,
 ):
     """The checkpoint of model ``name`` for a profile and rod, and whether it is current (trained
     with today's arguments, budget and data): ``models.checkpoints.find_checkpoint`` with the
-    identity the profile asks for. (None, False) when there is none."""
+    identity the profile asks for. ``recordings``: the Dataset of recorded runs it was trained on
+    instead of a rod (its folder is named by the Dataset's key). (None, False) when there is none."""
     P = get_profile(profile)
-    wanted = identity(name, model_kwargs, P.train_config(name), dataset_path(P, robot, gravity).stem)
-    return find_checkpoint(name, profile, wanted, rod_folder(robot, gravity), model_kwargs)
+    if recordings is not None:
+        data_key, rod = recordings.key, recordings.key
+    else:
+        data_key, rod = dataset_path(P, robot, gravity).stem, rod_folder(robot, gravity)
+    wanted = identity(name, model_kwargs, P.train_config(name), data_key)
+    return find_checkpoint(name, profile, wanted, rod, model_kwargs)
 
 
 def load_controller(
-    name: str, profile: str = "paper", robot: Robot = SIM_ROBOT, gravity: str = "vertical"
+    name: str | Path,
+    profile: str = "paper",
+    robot: Robot = SIM_ROBOT,
+    gravity: str = "vertical",
+    *,
+    recordings=None,
 ) -> Controller:
     """The trained model ``name`` ("mlp", "lstm", "transformer", ...) of a profile, for the rod
     and configuration it was trained on; paper-profile weights ship with the repository, so
     this works right after a clone. A model you trained yourself (data/checkpoints/) is
-    preferred when it is current; a stale one is used with a warning."""
+    preferred when it is current; a stale one is used with a warning.
+
+    ``recordings``: a folder (or list of files) of recorded runs, or their Dataset
+    (``recordings.load_dataset`` with your columns): the model trained on them by
+    ``softflow train MODEL --recordings DIR``, with no rod. ``name`` may also be the path of a
+    checkpoint file (.pt), loaded as it is. A model of recorded runs plans in their inputs and
+    units, clipped to the range they took (``recorded_range``)."""
+    if isinstance(name, Path) or str(name).endswith(".pt"):
+        path = Path(name)
+        if not path.is_file():
+            raise ValueError(f"no checkpoint file {path}; expected a .pt file written by softflow train")
+        checkpoint = load_checkpoint(path)
+        _check_controller(checkpoint["name"])
+        return _controller(checkpoint, path, robot, gravity)
+    _check_controller(name)
+    if recordings is None:
+        path, current = find_trained(name, profile, robot, gravity)
+        what, command = f"profile {profile!r} and rod {robot.name!r} / {gravity!r}", f"--profile {profile} {name}"
+    else:
+        given = recordings if isinstance(recordings, Dataset) else load_recordings(recordings)
+        path, current = find_trained(name, profile, recordings=given)
+        folder = recordings if isinstance(recordings, (str, Path)) else "DIR"
+        what = f"profile {profile!r} and {given.key}"
+        command = f"{name} --recordings {folder} --profile {profile}"
+    if path is None:
+        raise ValueError(f"no trained {name!r} for {what}; train it with: python -m softflow train {command}")
+    if not current:
+        warnings.warn(
+            f"{path} was trained with other arguments, budget, data or simulator version; "
+            f"retrain it with: python -m softflow train {command}",
+            stacklevel=2,
+        )
+    return _controller(load_checkpoint(path), path, robot, gravity)
+
+
+def _check_controller(name: str):
     if name == "forward":
         raise ValueError(
             '"forward" is the forward-dynamics surrogate used by RF-FWD, not a controller; '
             f"load one of {list(CONTROLLERS)}"
         )
     check_choice(name, "controller", CONTROLLERS)
-    path, current = find_trained(name, profile, robot, gravity)
-    if path is None:
-        raise ValueError(
-            f"no trained {name!r} for profile {profile!r} and rod {robot.name!r} / {gravity!r}; "
-            f"train it with: python -m softflow train --profile {profile} {name}"
-        )
-    if not current:
-        warnings.warn(
-            f"{path} was trained with other arguments, budget, data or simulator version; "
-            f"retrain it with: python -m softflow train --profile {profile} {name}",
-            stacklevel=2,
-        )
-    return Controller(model_from_checkpoint(load_checkpoint(path), path), name, robot=robot, gravity=gravity)
+
+
+def _controller(checkpoint: dict, path: Path, robot: Robot, gravity: str) -> Controller:
+    """The controller of a checkpoint: for ``robot`` and ``gravity``, or, for a model of recorded
+    runs, for no rod and clipped to the recorded range."""
+    model, name = model_from_checkpoint(checkpoint, path), checkpoint["name"]
+    if "recorded" not in checkpoint:
+        return Controller(model, name, robot=robot, gravity=gravity)
+    return Controller(model, name, robot=None, gravity=None, u_range=recorded_range(checkpoint["recorded"]))
+
+
+def recorded_range(recorded: dict) -> tuple:
+    """(low, high) a model of recorded runs clips its inputs to, from the range they took
+    (a checkpoint's ``recorded`` u_min, u_max): +-the largest |input| when every input took
+    both signs (a symmetric actuator, as the rod's +-U_MAX), else per input the [min, max]
+    seen (motor positions from 0 to 30 mm must not be planned at -30 mm)."""
+    low, high = np.asarray(recorded["u_min"], np.float64), np.asarray(recorded["u_max"], np.float64)  # (m,) each
+    if (low < 0).all() and (high > 0).all():
+        limit = float(max(-low.min(), high.max()))
+        return -limit, limit
+    return low, high
 
 
 def plan_all(controller, references, u_limit: float = U_MAX, **plan_options):

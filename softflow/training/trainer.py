@@ -251,6 +251,10 @@ def _train(
         epochs_run=state["epoch"],
         wall_seconds=state["wall_seconds"],
     )
+    if dataset.robot is None:  # no rod says what the inputs may be: the range they took, to clip plans to
+        final["recorded"] = dict(
+            dt=float(dataset.dt), u_min=dataset.u.min((0, 1)).tolist(), u_max=dataset.u.max((0, 1)).tolist()
+        )
     save_checkpoint(final, path)
     latest.unlink(missing_ok=True)
     return model_from_checkpoint(final, path), final
@@ -260,8 +264,8 @@ def ensure_trained(
     name: str,
     profile: Profile,
     dataset: Dataset,
-    robot: Robot = SIM_ROBOT,
-    gravity: str = "vertical",
+    robot: Robot | None = SIM_ROBOT,
+    gravity: str | None = "vertical",
     *,
     model_kwargs: dict | None = None,
     seed: int = 0,
@@ -274,12 +278,17 @@ def ensure_trained(
     ``seed``: the shipped checkpoint when it is current (seed 0), else a finished one in
     data/checkpoints/ (or ``root``), else trained there now (``ship=True``: into checkpoints/
     instead, the only way to write it). The models it requires (RF-FWD's surrogate) are
-    ensured first, each with its own budget and the same seed."""
+    ensured first, each with its own budget and the same seed. Recorded runs (``robot`` and
+    ``gravity`` None, as the dataset's) are trained in a folder named by the dataset's key,
+    never shipped."""
     if dataset.robot != robot or dataset.gravity != gravity:
         raise ValueError(
-            f"dataset was made for {dataset.robot.name!r} / {dataset.gravity!r}, not {robot.name!r} / {gravity!r}"
+            f"dataset was made for {getattr(dataset.robot, 'name', None)!r} / {dataset.gravity!r}, "
+            f"not {getattr(robot, 'name', None)!r} / {gravity!r}"
         )
-    rod = rod_folder(robot, gravity)
+    if robot is None and ship:
+        raise ValueError("only models of the simulated rods ship; a model of recorded runs cannot (ship=False)")
+    rod = rod_folder(robot, gravity) if robot is not None else dataset.key
     path = checkpoint_path(name, profile.name, rod, model_kwargs, seed=seed, shipped=ship, root=root)
     config = replace(profile.train_config(name), seed=seed)
     if profile.name == "paper" and not ship and seed == 0:
