@@ -232,7 +232,7 @@ def _train(args):
         dataset = recordings.load_dataset(args.recordings, inputs=args.inputs, tip=args.tip, dt=args.dt)
         found = dict(recordings=dataset)
         print(
-            f"recordings {dataset.key}: {len(dataset.u)} episodes of {dataset.u.shape[1]} steps of "
+            f"{dataset.key}: {len(dataset.u)} episodes of {dataset.u.shape[1]} steps of "
             f"{dataset.dt:g} s, {dataset.dims.inputs} inputs, a {dataset.dims.position}-D tip"
         )
     paths = []

@@ -73,7 +73,7 @@ def test_train_prints_the_checkpoint_last_in_a_folder_of_the_recordings(trained)
         recorded = checkpoints.load_checkpoint(path)["recorded"]
         assert recorded["dt"] == data.dt == pytest.approx(0.01)
         np.testing.assert_array_equal(recorded["u_max"], data.u.max((0, 1)))
-    assert outputs["mlp"][0].startswith(f"recordings {data.key}: ")
+    assert outputs["mlp"][0].startswith(f"{data.key}: ")
 
 
 @pytest.mark.parametrize("model", ["mlp", "rf-fwd"])
