@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, fields, replace
 
 import numpy as np
 
@@ -144,14 +144,9 @@ HW_ROBOT = Robot(
 # The simulation rod in two segments of 0.2 m (the paper's future work): four cables end at
 # the middle disk (u1, u2) and four run to the tip (u3, u4); the tip cables' holes are
 # turned by 45 degrees from the middle ones' (two cables cannot share a hole).
-TWO_SEGMENT_ROD = Robot(
+TWO_SEGMENT_ROD = replace(
+    SIM_ROBOT,
     name="two",
-    length=0.4,
-    diameter=0.004,
-    cable_distance=0.055,
-    youngs_modulus=2e9,
-    damping=5e7,
-    density=12000.0,
     cable_angles=tuple(a + offset for offset in (0.0, math.pi / 4) for a in SIM_ROBOT.cable_angles),
     cable_anchors=(0.2,) * 4 + (0.4,) * 4,
 )
