@@ -60,8 +60,15 @@ def _styled(draw):
 
     @functools.wraps(draw)
     def styled(*args, **kwargs):
-        with plt.rc_context(STYLE):
+        # Only STYLE's own keys are set and put back: plt.rc_context restores every rcParam,
+        # the backend too, and in a notebook the next figure then lands on a backend that does
+        # not display it.
+        saved = {key: plt.rcParams[key] for key in STYLE}
+        plt.rcParams.update(STYLE)
+        try:
             fig = draw(*args, **kwargs)
+        finally:
+            plt.rcParams.update(saved)
         for ax in fig.axes:
             ax.tick_params(labelsize=STYLE["xtick.labelsize"])
         return fig
