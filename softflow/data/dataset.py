@@ -1,12 +1,14 @@
 """The polynomial-excitation dataset and its content-hash cache.
 
 The paper trains on 3000 episodes of random polynomial actuation, 5 s each at 0.01 s.
-Episodes are stored whole (u and the tip states); training tuples are views on
-them, and the context windows of sequence models are gathered per batch, never copied
-whole. The cache file is named by a content key of everything that made it (the
-profile's data fields, the simulator's numbers and DATA_VERSION), so a change of any
-rebuilds it, a comment edit rebuilds nothing, and a corrupt or partial file is detected
-and rebuilt, never used.
+Episodes are stored whole (u and the tip states; for a rod of several segments also the
+states of the disks between them); training tuples are views on them, and the context
+windows of sequence models are gathered per batch, never copied whole. What a model is
+shown of a rod with inner disks is its ``observation``: the tip alone, or the tip and the
+disks. The cache file is named by a content key of everything that made it (the profile's
+data fields, the simulator's numbers and DATA_VERSION), so a change of any rebuilds it, a
+comment edit rebuilds nothing, and a corrupt or partial file is detected and rebuilt, never
+used.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from softflow.checks import check_choice
 from softflow.data.excitation import polynomial_excitation
 from softflow.models.common import Dims
 from softflow.profiles import Profile
@@ -26,6 +29,8 @@ from softflow.store import DATA_DIR, cache_file, read_npz, write_npz
 
 DATA_VERSION = 1  # bump when the excitation, the split or the stored arrays change
 BLOCK_EPISODES = 500  # episodes simulated and saved together: the unit of resumption
+OBSERVATIONS = ("tip", "tip+disk")  # what a model of a rod with inner disks is shown
+_STATE_CHUNK = 2048  # samples whose disk states are computed together (position Jacobians of every node)
 
 
 # ---------------------------------------------------------------------------- the dataset
@@ -67,6 +72,59 @@ class Dataset:
         return X[:, :-1], X[:, 1:], self.u[episodes]
 
 
+def observe_disks(positions, velocities, observation: str = "tip") -> np.ndarray:
+    """The state a model is shown, from the positions and velocities (..., S, 3) of a rod's disks
+    (base outwards, the tip last): "tip", the tip's position and velocity (..., 6); "tip+disk",
+    the tip's and then the inner disks' positions, then their velocities in the same order
+    (..., 6 S), which a rod of one segment (no inner disk) does not have."""
+    check_choice(observation, "observation", OBSERVATIONS)
+    n_disks = np.shape(positions)[-2]
+    if observation == "tip+disk" and n_disks < 2:
+        raise ValueError("observation 'tip+disk' needs a rod of several segments (a disk between them); got one")
+    order = [n_disks - 1] + (list(range(n_disks - 1)) if observation == "tip+disk" else [])
+    batch = np.shape(positions)[:-2]
+    return np.concatenate(
+        [
+            np.asarray(positions)[..., order, :].reshape(batch + (-1,)),
+            np.asarray(velocities)[..., order, :].reshape(batch + (-1,)),
+        ],
+        -1,
+    )
+
+
+def tip_of(states) -> np.ndarray:
+    """The tip's state (..., 6) within "tip+disk" states (..., 6 S): the tip leads both halves."""
+    half = np.shape(states)[-1] // 2
+    return np.concatenate([states[..., :3], states[..., half : half + 3]], -1)
+
+
+def disk_states(sim: Simulator, q, qd) -> tuple[np.ndarray, np.ndarray]:
+    """Positions and velocities (..., S, 3) of the rod's disks, base outwards (the tip last), at
+    q, qd (..., nq): the tip's as a rollout gives them (``Simulator.tip_state``), the inner
+    disks' velocity J(q) qd through their exact position Jacobian (the same kinematics: J qd at
+    the tip agrees with the rollout's velocity to about 1e-8 relative)."""
+    batch, nq = np.shape(q)[:-1], sim.nq
+    q, qd = np.reshape(q, (-1, nq)), np.reshape(qd, (-1, nq))
+    inner = sim.kinematics.segment_ends[:-1]
+    positions, velocities = [], []
+    for start in range(0, len(q), _STATE_CHUNK):
+        c = slice(start, start + _STATE_CHUNK)
+        frames = sim.kinematics.frames(q[c])
+        jacobians = sim.kinematics.position_jacobians(frames)[:, inner]  # (b, S-1, 3, nq)
+        tip = sim.tip_state(q[c], qd[c])  # (b, 6)
+        positions.append(np.concatenate([frames["positions"][:, inner], tip[:, None, :3]], 1))
+        velocities.append(np.concatenate([(jacobians @ qd[c][:, None, :, None])[..., 0], tip[:, None, 3:]], 1))
+    shape = batch + (len(inner) + 1, 3)
+    return np.concatenate(positions).reshape(shape), np.concatenate(velocities).reshape(shape)
+
+
+def disk_rollout(sim: Simulator, u, *, progress: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """``Simulator.rollout`` with every disk: positions and velocities (B, T+1, S, 3) of the
+    disks (the tip last) for actuation u (B, T, m) from the rest pose."""
+    q, qd = sim.integrate(u, sim.rest_q(), np.zeros(sim.nq), progress=progress)
+    return disk_states(sim, q, qd)
+
+
 def subset(dataset: Dataset, n_episodes: int) -> Dataset:
     """The dataset as if it had ``n_episodes`` episodes: the first 80 % of them train (from its
     own train split), validation and test unchanged, so models of every size are judged on the
@@ -87,22 +145,34 @@ def split_episodes(n_episodes: int, seed: int, fractions=(0.8, 0.1)):
     return np.sort(order[:n_train]), np.sort(order[n_train : n_train + n_val]), np.sort(order[n_train + n_val :])
 
 
-def _dataset_from(arrays: dict | None, key: str, robot: Robot, gravity: str, u_max: float = U_MAX) -> Dataset | None:
-    """A Dataset from cached arrays, or None when any is missing or inconsistent."""
+def _dataset_from(
+    arrays: dict | None, key: str, robot: Robot, gravity: str, u_max: float = U_MAX, observation: str = "tip"
+) -> Dataset | None:
+    """A Dataset from cached arrays, as ``observation`` sees them, or None when any is missing or
+    inconsistent (a rod of several segments must also have its inner disks' states)."""
     try:
         data = Dataset(
             **{k: arrays[k] for k in ("u", "states", "train", "val", "test")}, key=key, robot=robot, gravity=gravity
         )
+        disks = arrays["disks"] if len(robot.segment_lengths) > 1 else np.zeros(data.states.shape[:2] + (0, 6))
     except (KeyError, TypeError, ValueError):
         return None
     E, T, _ = data.u.shape
     consistent = (
         data.states.shape[-1] % 2 == 0
         and np.isfinite(data.states).all()
+        and disks.shape == data.states.shape[:2] + (len(robot.segment_lengths) - 1, 6)
+        and np.isfinite(disks).all()
         and np.abs(data.u).max() <= u_max
         and len(data.train) + len(data.val) + len(data.test) == E
     )
-    return data if consistent else None
+    if not consistent:
+        return None
+    if observation == "tip":
+        return data
+    positions = np.concatenate([disks[..., :3], data.states[..., None, :3]], -2)  # (E, T+1, S, 3)
+    velocities = np.concatenate([disks[..., 3:], data.states[..., None, 3:]], -2)
+    return replace(data, states=observe_disks(positions, velocities, observation), key=f"{key}-{observation}")
 
 
 def dataset_path(
@@ -119,18 +189,25 @@ def load_dataset(
     robot: Robot = SIM_ROBOT,
     gravity: str = "vertical",
     *,
+    observation: str = "tip",
     progress: bool = True,
     data_dir: Path = DATA_DIR,
 ) -> Dataset:
-    """The profile's polynomial-excitation dataset, generated on first use and cached."""
+    """The profile's polynomial-excitation dataset (one polynomial per input of the rod), generated
+    on first use and cached; its states as ``observation`` sees them ("tip", or "tip+disk" for a
+    rod of several segments, whose key then says so)."""
+    check_choice(observation, "observation", OBSERVATIONS)
     path = dataset_path(profile, robot, gravity, data_dir)
     n_steps = int(round(profile.episode_seconds / DT))
     return simulated_dataset(
         path,
-        lambda: polynomial_excitation(profile.n_episodes, n_steps, np.random.default_rng(profile.seed)),
+        lambda: polynomial_excitation(
+            profile.n_episodes, n_steps, np.random.default_rng(profile.seed), n_inputs=robot.n_inputs
+        ),
         Simulator(robot, gravity=gravity),
         profile.seed,
         progress=progress,
+        observation=observation,
     )
 
 
@@ -140,7 +217,9 @@ class DatasetOnDemand:
     found current, so scoring a shipped model never simulates 3000 episodes first."""
 
     def __init__(self, profile: Profile, robot: Robot = SIM_ROBOT, gravity: str = "vertical", **options):
-        self.key, self.robot, self.gravity = dataset_path(profile, robot, gravity).stem, robot, gravity
+        observation = options.get("observation", "tip")
+        stem = dataset_path(profile, robot, gravity).stem
+        self.key, self.robot, self.gravity = stem if observation == "tip" else f"{stem}-{observation}", robot, gravity
         self._make = lambda: load_dataset(profile, robot, gravity, **options)
         self._dataset = None
 
@@ -153,32 +232,56 @@ class DatasetOnDemand:
 
 
 def simulated_dataset(
-    path: Path, excitation, simulator: Simulator, seed: int, *, u_max: float = U_MAX, progress: bool = True
+    path: Path,
+    excitation,
+    simulator: Simulator,
+    seed: int,
+    *,
+    u_max: float = U_MAX,
+    progress: bool = True,
+    observation: str = "tip",
 ) -> Dataset:
-    """The Dataset cached at ``path``, or the episodes of ``excitation()`` (E, T, 2) run through
-    ``simulator`` and split by ``seed``, saved there. Generation runs in blocks saved as they
-    finish, so an interrupted run resumes where it stopped; the final file appears atomically."""
+    """The Dataset cached at ``path``, or the episodes of ``excitation()`` (E, T, m) run through
+    ``simulator`` and split by ``seed``, saved there; its states as ``observation`` sees them.
+    A rod of several segments also saves its inner disks' states (``disks``, (E, T+1, S-1, 6):
+    position, velocity). Generation runs in blocks saved as they finish, so an interrupted run
+    resumes where it stopped; the final file appears atomically."""
     robot, gravity = simulator.robot, simulator.gravity
-    cached = _dataset_from(read_npz(path), path.stem, robot, gravity, u_max)
+    cached = _dataset_from(read_npz(path), path.stem, robot, gravity, u_max, observation)
     if cached is not None:
         return cached
     u = excitation()
     n_episodes, n_steps, _ = u.shape
+    inner = len(robot.segment_lengths) > 1
     blocks_dir = path.with_suffix(".blocks")
     blocks_dir.mkdir(parents=True, exist_ok=True)
-    states = []
+    blocks = []
     for start in range(0, n_episodes, BLOCK_EPISODES):
         stop = min(start + BLOCK_EPISODES, n_episodes)
         block_path = blocks_dir / f"{start:06d}.npz"
-        done = (read_npz(block_path) or {}).get("states")
-        if done is None or done.shape[:2] != (stop - start, n_steps + 1):
-            done = simulator.rollout(u[start:stop], progress=progress)
-            write_npz(block_path, states=done)
-        states.append(done)
+        done = read_npz(block_path) or {}
+        if (
+            done.get("states") is None
+            or done["states"].shape[:2] != (stop - start, n_steps + 1)
+            or (inner and "disks" not in done)
+        ):
+            done = _simulate(simulator, u[start:stop], inner, progress)
+            write_npz(block_path, **done)
+        blocks.append(done)
     train, val, test = split_episodes(n_episodes, seed)
-    write_npz(path, u=u, states=np.concatenate(states), train=train, val=val, test=test)
+    arrays = {name: np.concatenate([block[name] for block in blocks]) for name in blocks[0]}
+    write_npz(path, u=u, **arrays, train=train, val=val, test=test)
     shutil.rmtree(blocks_dir, ignore_errors=True)  # another process making the same data may clean up first
-    return _dataset_from(read_npz(path), path.stem, robot, gravity, u_max)
+    return _dataset_from(read_npz(path), path.stem, robot, gravity, u_max, observation)
+
+
+def _simulate(simulator: Simulator, u, inner: bool, progress: bool) -> dict:
+    """A block's arrays: the tip states (B, T+1, 6), and with ``inner`` the inner disks' (B, T+1, S-1, 6)."""
+    if not inner:
+        return dict(states=simulator.rollout(u, progress=progress))
+    positions, velocities = disk_rollout(simulator, u, progress=progress)
+    both = np.concatenate([positions, velocities], -1)  # (B, T+1, S, 6)
+    return dict(states=both[..., -1, :], disks=both[..., :-1, :])
 
 
 def gather_windows(states: np.ndarray, episodes, steps, context: int) -> np.ndarray:
