@@ -7,6 +7,12 @@ Every reference starts at rest with an approach segment to the path's start poin
 which its ``mask`` excludes from the metrics (the paper's Initial-to-Start transient).
 Random and complex-3D references are made by running held-out actuation families
 through the simulator, so their true u is known.
+
+A rod with more inputs than tip coordinates (``TWO_SEGMENT_ROD``: four) holds a tip point
+with a curve of u, so its y-z lift takes the least-norm equilibrium (``least_norm_lift``),
+and it can follow paths whose depth leaves that lift (``depth_circle_reference``), which a
+rod of one segment cannot. Its references can also carry the path of its middle disk
+(``observation="tip+disk"``).
 """
 
 from __future__ import annotations
@@ -17,7 +23,9 @@ import numpy as np
 from scipy.interpolate import make_interp_spline
 
 from softflow.checks import check_choice
+from softflow.data.dataset import disk_rollout, observe_disks
 from softflow.data.excitation import mixed_excitation, sum_of_sines_excitation
+from softflow.rod import statics
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import DT, U_MAX
 from softflow.store import DATA_DIR, cache_file, cached_arrays
@@ -30,11 +38,20 @@ SIZE = 0.12  # m, half-extent of a structured shape in y-z
 HARDWARE_SHAPES = ("star", "spiral", "circle", "heart")  # Table III
 HARDWARE_SIZE = 0.05  # m: the stiffer hardware rod reaches about 0.08 m from its rest tip at 4 N
 HARDWARE_BURST_RADIUS = 0.05  # m
+# 3-D paths of a redundant rod: a y-z circle about the rest tip whose depth falls below the
+# least-norm lift's twice per revolution (docs/assumptions.md, two_segment)
+DEPTH_RADIUS = 0.05  # m
+DEPTH_SWING = 0.006  # m: the largest fall below the least-norm depth
+PATH3D_STARTS = (0, 120, 240)  # degrees: where on its circle each path starts (and its depth wave with it)
+REACH_TOLERANCE = 1e-6  # m: every sample of a 3-D path is an equilibrium tip to within this
+_NULL_STEP = 1e-3  # N: forward difference of d p / d u along the null space (the least-norm solution's rate)
+_STATIC_CHUNK = 128  # points fitted together (each Newton step perturbs every coordinate of each)
 
 
 @dataclass(frozen=True)
 class Reference:
-    """A reference trajectory at DT: states (T+1, 6), metric mask (T+1,), true u (T, 2) or None."""
+    """A reference trajectory at DT: states (T+1, d) (6 for the tip, 12 for the tip and the middle
+    disk), metric mask (T+1,), true u (T, m) or None."""
 
     name: str
     family: str  # "shape", "random", "burst" or "complex3d"
@@ -131,10 +148,99 @@ def _minimum_jerk(t, duration):
     return 10 * x**3 - 15 * x**4 + 6 * x**5, (30 * x**2 - 60 * x**3 + 30 * x**4) / duration
 
 
-def _lift(sim: Simulator, yz, yz_rate):
-    """Full 6D states of a y-z path: p from the static workspace, v = dp/d(yz) yz_rate."""
-    p, _, dp_dyz = sim.static_lift(yz)
-    return np.concatenate([p, np.einsum("tij,tj->ti", dp_dyz, yz_rate)], -1)
+@dataclass(frozen=True)
+class StaticPath:
+    """Least-norm equilibria at a path's points: actuation u (K, m), the position (K, S, 3) of every
+    disk (base outwards, the tip last), and its rate along the fitted target coordinates,
+    d position / d target (K, S, 3, r)."""
+
+    u: np.ndarray
+    positions: np.ndarray
+    rates: np.ndarray
+
+    def velocities(self, target_rate) -> np.ndarray:
+        """Disk velocities (K, S, 3) of a path whose target moves at ``target_rate`` (K, r)."""
+        return np.einsum("ksir,kr->ksi", self.rates, target_rate)
+
+
+def _disk_jacobians(sim: Simulator, u, q=None):
+    """The equilibrium q at u (K, m), every disk's position (K, S, 3) and d position / d u
+    = Jp Kt^-1 B (K, S, 3, m) there (docs/simulator.md, S3)."""
+    q, stiffness = statics.equilibrium(sim, u, q)
+    frames = sim.kinematics.frames(q)
+    ends = sim.kinematics.segment_ends
+    Jp = sim.kinematics.position_jacobians(frames)[:, ends]  # (K, S, 3, nq)
+    dq_du = np.linalg.solve(stiffness, np.broadcast_to(sim.cable_map, (len(u),) + sim.cable_map.shape))  # (K, nq, m)
+    return q, frames["positions"][:, ends], Jp @ dq_du[:, None]
+
+
+def _least_norm_rates(sim: Simulator, u, rows):
+    """Disk positions (K, S, 3) and their rates d position / d target (K, S, 3, r) at u (K, m), the
+    least-norm solution of p_rows(u) = target.
+
+    Along the solutions u*(t), J du = dt, and the gradient of |u|^2 / 2 stays normal to the set
+    that reaches t: N^T H du = 0, with N the null space of J = d p_rows / d u, H = I - sum_i
+    lambda_i d2 p_i the Hessian of the Lagrangian and lambda = J^+T u its multipliers. So
+    du/dt = (I - N (N^T H N)^-1 N^T H) J^+, where N^T H needs only d2 p_i N: a forward difference
+    of J along each null direction."""
+    q, positions, jacobians = _disk_jacobians(sim, u)
+    J = jacobians[:, -1, rows]  # (K, r, m)
+    pinv = np.linalg.pinv(J)  # (K, m, r)
+    null = np.linalg.svd(J)[2][:, len(rows) :].transpose(0, 2, 1)  # (K, m, k), orthonormal; k = 0 if m <= r
+    du_dt = pinv
+    if null.shape[2]:
+        multipliers = (pinv.transpose(0, 2, 1) @ u[..., None])[..., 0]  # (K, r)
+        projected = null.transpose(0, 2, 1).copy()  # N^T H, (K, k, m)
+        for a in range(null.shape[2]):
+            shifted = _disk_jacobians(sim, u + _NULL_STEP * null[:, :, a], q)[2][:, -1, rows]
+            projected[:, a] -= np.einsum("kr,krm->km", multipliers, (shifted - J) / _NULL_STEP)
+        du_dt = pinv - null @ np.linalg.solve(projected @ null, projected @ pinv)
+    return positions, jacobians @ du_dt[:, None]
+
+
+def least_norm_statics(sim: Simulator, target, rows, start) -> StaticPath:
+    """The least-norm u whose equilibrium tip has ``target`` (K, 3) in coordinates ``rows``
+    (``statics.fit_static`` from ``start`` (K, m)), its disks and their rates along the target.
+    ValueError where no equilibrium reaches a point."""
+    parts = []
+    for begin in range(0, len(target), _STATIC_CHUNK):
+        chunk = slice(begin, begin + _STATIC_CHUNK)
+        try:
+            u, _, _ = statics.fit_static(sim, target[chunk], rows, start[chunk], u_limit=sim.u_bound)
+        except (RuntimeError, np.linalg.LinAlgError) as error:
+            raise ValueError(
+                f"the path leaves the static workspace of {sim.robot.name!r} near samples {begin}.."
+                f"{min(begin + _STATIC_CHUNK, len(target)) - 1} (no equilibrium found)"
+            ) from error
+        parts.append((u, *_least_norm_rates(sim, u, rows)))
+    return StaticPath(*(np.concatenate(part) for part in zip(*parts)))
+
+
+def least_norm_lift(sim: Simulator, yz, u_max: float = U_MAX) -> StaticPath:
+    """The least-norm equilibrium whose tip has lateral position yz (K, 2), over every input: the
+    y-z lift of a rod with more inputs than two, whose depth x is where the gentlest actuation puts
+    the tip (``Simulator.static_lift`` for two inputs). Rates are d position / d(y, z).
+    ValueError where it needs |u_i| > u_max."""
+    yz = np.asarray(yz, float)
+    arc_towards = np.column_stack([np.full(len(yz), sim.robot.length), yz])  # the tip cables' arc, to start from
+    path = least_norm_statics(
+        sim, np.column_stack([np.zeros(len(yz)), yz]), [1, 2], statics.arc_actuation(sim.robot, arc_towards)
+    )
+    worst = np.abs(path.u).max()
+    if worst > u_max:
+        raise ValueError(f"y-z path leaves the reachable static workspace: needs |u| = {worst:.2f} N > {u_max} N")
+    return path
+
+
+def _lift(sim: Simulator, yz, yz_rate, observation: str = "tip"):
+    """Full states of a y-z path: p from the static workspace (for a rod with more than two inputs
+    the least-norm equilibrium), v = dp/d(yz) yz_rate; the tip's 6, or with ``observation``
+    "tip+disk" the tip's and the middle disk's 12."""
+    if sim.n_inputs == 2 and observation == "tip":
+        p, _, dp_dyz = sim.static_lift(yz)
+        return np.concatenate([p, np.einsum("tij,tj->ti", dp_dyz, yz_rate)], -1)
+    path = least_norm_lift(sim, yz)
+    return observe_disks(path.positions, path.velocities(yz_rate), observation)
 
 
 def _check_reach(sim: Simulator, yz):
@@ -156,22 +262,33 @@ def _check_reach(sim: Simulator, yz):
     )
 
 
-def _with_approach(sim: Simulator, yz_path, yz_rate_path):
-    """Prepend a minimum-jerk move from the rest tip to the path start; mask the path only."""
+def _approach(sim: Simulator, yz_path, yz_rate_path):
+    """The y-z path (K, 2) and its rate with a minimum-jerk move from the rest tip to its start
+    prepended, and the mask of the path's own samples."""
     rest = sim.tip_positions(sim.rest_q()[None])[0, 1:]
     n_approach = int(round(APPROACH_SECONDS / DT))
     fraction, rate = _minimum_jerk(np.arange(n_approach) * DT, APPROACH_SECONDS)
     yz = np.concatenate([rest + fraction[:, None] * (yz_path[0] - rest), yz_path])
     yz_rate = np.concatenate([rate[:, None] * (yz_path[0] - rest), yz_rate_path])
-    mask = np.arange(len(yz)) >= n_approach
-    return _lift(sim, yz, yz_rate), mask
+    return yz, yz_rate, np.arange(len(yz)) >= n_approach
+
+
+def _with_approach(sim: Simulator, yz_path, yz_rate_path, observation: str = "tip"):
+    """Prepend a minimum-jerk move from the rest tip to the path start; mask the path only."""
+    yz, yz_rate, mask = _approach(sim, yz_path, yz_rate_path)
+    return _lift(sim, yz, yz_rate, observation), mask
 
 
 def shape_reference(
-    sim: Simulator, name: str, size: float = SIZE, centre=(0.0, 0.0), speed: float = NOMINAL_SPEED
+    sim: Simulator,
+    name: str,
+    size: float = SIZE,
+    centre=(0.0, 0.0),
+    speed: float = NOMINAL_SPEED,
+    observation: str = "tip",
 ) -> Reference:
     """A structured shape of half-extent ``size`` (m) about ``centre`` (y, z in m) traversed once at
-    mean speed ``speed`` (m/s)."""
+    mean speed ``speed`` (m/s); ``observation`` "tip+disk" adds the middle disk of a two-segment rod."""
     if not (size > 0 and speed > 0):
         raise ValueError(f"size and speed must be positive; got {size!r}, {speed!r}")
     points = shape_points(name) * size + np.asarray(centre, float)
@@ -181,8 +298,54 @@ def shape_reference(
     t = np.arange(int(round(duration / DT)) + 1) * DT
     progress, rate = _ramped_progress(t, t[-1], RAMP_SECONDS)
     s = progress * length
-    states, mask = _with_approach(sim, spline(s), spline(s, 1) * (rate * length)[:, None])
+    states, mask = _with_approach(sim, spline(s), spline(s, 1) * (rate * length)[:, None], observation)
     return Reference(name, "shape", states, mask)
+
+
+def depth_circle_reference(
+    sim: Simulator,
+    start: float = 0.0,
+    radius: float = DEPTH_RADIUS,
+    swing: float = DEPTH_SWING,
+    speed: float = NOMINAL_SPEED,
+    observation: str = "tip",
+) -> Reference:
+    """A 3-D path for a rod with more inputs than tip coordinates: a y-z circle of ``radius`` (m)
+    about the rest tip, from the angle ``start`` (degrees, from +y towards +z) once round at the
+    shapes' speed and ramps, whose depth x falls below the least-norm lift's by
+    swing (1 - cos 2(a - start)) / 2 (m): twice per revolution, back on the lift at the start and
+    half-way. The approach from rest is lifted as the shapes'. Each sample is the least-norm
+    equilibrium at its 3-D point, reached to REACH_TOLERANCE with |u_i| <= U_MAX, else ValueError;
+    a rod of one segment reaches none but the lift's depth."""
+    if not (radius > 0 and swing >= 0 and speed > 0):
+        raise ValueError(f"radius and speed must be > 0 and swing >= 0; got {radius!r}, {swing!r}, {speed!r}")
+    rest = sim.tip_positions(sim.rest_q()[None])[0, 1:]
+    t = np.arange(int(round(2 * np.pi * radius / speed / DT)) + 1) * DT
+    progress, rate = _ramped_progress(t, t[-1], RAMP_SECONDS)
+    turned, turn_rate = 2 * np.pi * progress, 2 * np.pi * rate  # angle from the start (rad) and its rate
+    angle = np.deg2rad(start) + turned
+    circle = rest + radius * np.stack([np.cos(angle), np.sin(angle)], -1)
+    _check_reach(sim, circle)
+    yz, yz_rate, mask = _approach(
+        sim, circle, radius * turn_rate[:, None] * np.stack([-np.sin(angle), np.cos(angle)], -1)
+    )
+    lift = least_norm_lift(sim, yz)
+    depth = np.concatenate([np.zeros(np.sum(~mask)), -swing * (1 - np.cos(2 * turned)) / 2])
+    depth_rate = np.concatenate([np.zeros(np.sum(~mask)), -swing * np.sin(2 * turned) * turn_rate])
+    tip = lift.positions[:, -1]
+    target = np.column_stack([tip[:, 0] + depth, yz])
+    target_rate = np.column_stack([np.einsum("kr,kr->k", lift.rates[:, -1, 0], yz_rate) + depth_rate, yz_rate])
+    path = least_norm_statics(sim, target[mask], [0, 1, 2], lift.u[mask])
+    miss = np.linalg.norm(path.positions[:, -1] - target[mask], axis=-1).max()
+    worst = np.abs(path.u).max()
+    if not (miss <= REACH_TOLERANCE and worst <= U_MAX):
+        raise ValueError(
+            f"the 3-D path leaves the static workspace of {sim.robot.name!r}: its nearest equilibria miss by "
+            f"{1e3 * miss:.3g} mm and need |u| up to {worst:.2f} N (at most {1e3 * REACH_TOLERANCE:g} mm and {U_MAX} N)"
+        )
+    positions, velocities = lift.positions.copy(), lift.velocities(yz_rate)
+    positions[mask], velocities[mask] = path.positions, path.velocities(target_rate[mask])
+    return Reference(f"path3d-{start:g}", "path3d", observe_disks(positions, velocities, observation), mask)
 
 
 def burst_circle_reference(
@@ -208,16 +371,22 @@ def burst_circle_reference(
     return Reference(name, "burst", states, mask)
 
 
-def actuated_references(sim: Simulator, u, names, family: str):
-    """References made by running actuation (B, T, 2) through the simulator; the true u is kept."""
-    states = sim.rollout(u)
+def actuated_references(sim: Simulator, u, names, family: str, observation: str = "tip"):
+    """References made by running actuation (B, T, m) through the simulator; the true u is kept.
+    ``observation`` "tip+disk": the middle disk of a two-segment rod too."""
+    states = sim.rollout(u) if observation == "tip" else observe_disks(*disk_rollout(sim, u), observation)
     return [Reference(name, family, X, np.ones(len(X), bool), np.asarray(uu)) for name, X, uu in zip(names, states, u)]
 
 
-def random_references(sim: Simulator, n: int = 4, seconds: float = 5.0, seed: int = 1000, u_max: float = 3.0):
-    """Rand1..Randn: held-out sum-of-sines actuation below 1 Hz (not the polynomial training family)."""
-    u = sum_of_sines_excitation(n, int(round(seconds / DT)), seed, u_max=u_max, frequencies=(0.1, 1.0))
-    return actuated_references(sim, u, [f"Rand{k + 1}" for k in range(n)], "random")
+def random_references(
+    sim: Simulator, n: int = 4, seconds: float = 5.0, seed: int = 1000, u_max: float = 3.0, observation: str = "tip"
+):
+    """Rand1..Randn: held-out sum-of-sines actuation below 1 Hz on each of the rod's inputs (not the
+    polynomial training family)."""
+    u = sum_of_sines_excitation(
+        n, int(round(seconds / DT)), seed, u_max=u_max, frequencies=(0.1, 1.0), n_inputs=sim.n_inputs
+    )
+    return actuated_references(sim, u, [f"Rand{k + 1}" for k in range(n)], "random", observation)
 
 
 def complex3d_references(sim: Simulator, n: int = 3, seconds: float = 8.0, seed: int = 2000):
