@@ -20,6 +20,7 @@ SUBMODULES = [
     "design",
     "closed_loop",
     "twin_burst",
+    "two_segment",
     "smoke",
 ]
 __getattr__, __dir__, __all__ = facade(__name__, EXPORTS, SUBMODULES)

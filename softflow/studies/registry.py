@@ -26,6 +26,11 @@ design: the RF design choices behind the defaults (notebook 04): RF-FWD's consis
     0.1 / 0.3 / 1 / 3, RF, and RF with uniform tau, one seed each at the short budget.
 twin_burst: where the twin's loops break: the burst circle continued to a 0.2 s period, open
     loop, closed loop and learning across repetitions, scored per revolution.
+two_segment: an inverse that is many-valued by construction, fixed before any paper cell ran: the
+    two-segment rod (four inputs, a 3-D tip), Table I's models but RF-Physical trained on its tip
+    and MLP, RF and RF-FWD on its tip and middle disk, 3 seeds at 20 000 steps, plus the ILC
+    floor; scored on its shapes, 24 random references and three 3-D paths, per step on u and on
+    the tip the predicted u reaches in one step of the true simulator.
 """
 
 from __future__ import annotations
@@ -40,6 +45,7 @@ from softflow.studies import (
     smoke,
     table1,
     twin_burst,
+    two_segment,
 )
 from softflow.studies.study import Study
 
@@ -53,4 +59,5 @@ STUDIES = {
     "ambiguity": Study(ambiguity.cells, ambiguity.run, ambiguity.models),
     "fwd_lambda": Study(fwd_lambda.cells, fwd_lambda.run, fwd_lambda.models),
     "design": Study(design.cells, design.run, design.models),
+    "two_segment": Study(two_segment.cells, two_segment.run, two_segment.models),
 }

@@ -1,0 +1,229 @@
+"""two_segment: an inverse that is many-valued by construction. The two-segment rod's four inputs
+hold its 3-D tip at a point with a whole curve of u (the middle disk says which), so a model shown
+the tip alone cannot know u, while one shown the tip and the middle disk nearly can. Table I's
+models trained on the tip, and three of them on the tip and the middle disk, each scored open loop
+on the rod's shapes, random references and 3-D paths, per step on u, and on where its u takes the
+tip in one step of the true simulator (a u unlike the true one may still move the tip right).
+Fixed before any paper cell ran (docs/assumptions.md, "The two-segment study").
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from softflow import data, training
+from softflow.control.planning import Controller, pad_plans, plan_all, score
+from softflow.data.dataset import tip_of
+from softflow.data.references import (
+    PATH3D_STARTS,
+    STRUCTURED,
+    Reference,
+    cached_references,
+    depth_circle_reference,
+    random_references,
+    shape_reference,
+)
+from softflow.profiles import PROFILES, get_profile
+from softflow.rod.dynamics import Simulator
+from softflow.rod.robots import TWO_SEGMENT_ROD
+from softflow.store import cache_file, cached_arrays
+from softflow.studies import ambiguity
+from softflow.studies.data_size import DATA_SIZE
+from softflow.studies.study import FLOOR, floor_rows, held_out_plan, trained, unnamed
+
+GRAVITY = "vertical"
+FLOOR_OBSERVATION = "simulator"  # the floor's cell: it learns on the true simulator, it observes nothing
+
+TWO_SEGMENT = {  # per profile: the data, the grid and the references
+    "ci": dict(
+        data=PROFILES["ci"],
+        models={"tip": ("mlp", "rf")},
+        seeds=(0,),
+        ilc_iterations=0,  # no floor
+        shapes=("circle", "char_C"),
+        n_random=2,
+        paths=1,
+        draws=4,
+        check_episodes=1,
+        train=DATA_SIZE["ci"]["train"],
+    ),
+    "paper": dict(
+        data=PROFILES["paper"],
+        models={"tip": ("mlp", "lstm", "transformer", "rf", "rf-fwd"), "tip+disk": ("mlp", "rf", "rf-fwd")},
+        seeds=(0, 1, 2),
+        ilc_iterations=40,
+        shapes=STRUCTURED,
+        n_random=24,
+        paths=len(PATH3D_STARTS),
+        draws=16,
+        check_episodes=20,
+        train=DATA_SIZE["paper"]["train"],  # 20 000 steps, no early stop
+    ),
+}
+
+
+def cells(profile_name: str) -> list[dict]:
+    grid = TWO_SEGMENT[profile_name]
+    floor = [dict(study="two_segment", model=FLOOR, seed=0, observation=FLOOR_OBSERVATION)]
+    return (floor if grid["ilc_iterations"] else []) + [
+        dict(study="two_segment", model=model, seed=seed, observation=observation)
+        for observation, names in grid["models"].items()
+        for model in names
+        for seed in grid["seeds"]
+    ]
+
+
+def references(sim: Simulator, profile_name: str, observation: str = "tip") -> list[Reference]:
+    """The profile's references for the two-segment rod as ``observation`` sees them: its shapes,
+    Rand1..Rand<n_random>, then its 3-D paths. Each is made once with the middle disk and cached;
+    "tip" keeps the tip's state of it."""
+    grid = TWO_SEGMENT[profile_name]
+    made = [
+        *(cached_references(sim, f"two-segment-{name}", _shape(name))[0] for name in grid["shapes"]),
+        *cached_references(sim, f"two-segment-random-{grid['n_random']}", _random(grid["n_random"])),
+        *(cached_references(sim, f"two-segment-path3d-{a}", _path(a))[0] for a in PATH3D_STARTS[: grid["paths"]]),
+    ]
+    return made if observation == "tip+disk" else [replace(r, states=tip_of(r.states)) for r in made]
+
+
+def _shape(name: str):
+    def least_norm_shape(sim):
+        return [shape_reference(sim, name, observation="tip+disk")]
+
+    return least_norm_shape
+
+
+def _random(n: int):
+    def random_sines(sim):
+        return random_references(sim, n, observation="tip+disk")
+
+    return random_sines
+
+
+def _path(start: float):
+    def depth_circle(sim):
+        return [depth_circle_reference(sim, start, observation="tip+disk")]
+
+    return depth_circle
+
+
+def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> list[dict]:
+    """One model and seed trained on the tip, or on the tip and the middle disk, with the study's
+    fixed budget: its u error and the spread of a flow's draws on the held-out episodes, where its
+    u takes the tip in one step, and its tracking of every reference (z = 0; a flow also with the
+    mean of its draws); or the ILC floor on every reference. One row per reference and plan."""
+    grid, sim = TWO_SEGMENT[profile_name], Simulator(TWO_SEGMENT_ROD, GRAVITY)
+    scored = references(sim, profile_name)
+    if cell["model"] == FLOOR:
+        rows, trials = floor_rows(sim, scored, grid["ilc_iterations"])
+        return [unnamed(row, ilc_best_trial=int(t)) for row, t in zip(rows, trials)]
+    observation = cell["observation"]
+    dataset = data.load_dataset(grid["data"], TWO_SEGMENT_ROD, GRAVITY, observation=observation, progress=False)
+    model, checkpoint = training.ensure_trained(
+        cell["model"],
+        _budget(profile_name),
+        dataset,
+        TWO_SEGMENT_ROD,
+        GRAVITY,
+        seed=cell["seed"],
+        root=workdir / "models" / profile_name / observation,
+        device=device,
+    )
+    controller = Controller(model, cell["model"], robot=TWO_SEGMENT_ROD, gravity=GRAVITY, workspace_margin=None)
+    measured = dict(
+        **_spread(dataset, workdir),
+        **ambiguity._per_step(controller, dataset, grid["draws"]),
+        **tip_steps(controller, dataset, sim, grid["draws"], _true_steps(grid, dataset, sim, workdir)),
+        best_val=float(checkpoint["best_val"]),
+        epochs_run=int(checkpoint["epochs_run"]),
+        train_minutes=float(checkpoint["wall_seconds"]) / 60,
+    )
+    plans = {"zero": {}}
+    if controller.generative:
+        plans[f"mean-of-{grid['draws']}"] = dict(noise="seeded", n_samples=grid["draws"])
+    rows = tracking(controller, references(sim, profile_name, observation), scored, sim, plans)
+    return [unnamed(row, **measured) for row in rows]
+
+
+def tracking(controller: Controller, planned_on, scored, sim: Simulator, plans: dict) -> list[dict]:
+    """Table I's rows for each way of planning in ``plans`` ({name: plan options}): each reference
+    planned as the controller observes it (``planned_on``, e.g. with the middle disk's path), every
+    plan run from rest in one batched rollout (the simulator is batch-invariant), the tip scored
+    against ``scored`` (the same references, tip only); each row names its ``plan``."""
+    planned = [plan_all(controller, planned_on, **options)[0] for options in plans.values()]
+    _, padded = pad_plans([u for plan in planned for u in plan])
+    achieved = sim.rollout(padded).reshape(len(plans), len(scored), -1, 6)  # (plans, R, T_max + 1, 6)
+    return [
+        dict(score(controller.name, r, u, X[: r.n_steps + 1], sim.dt), plan=name)
+        for name, plan, outcomes in zip(plans, planned, achieved)
+        for r, u, X in zip(scored, plan, outcomes)
+    ]
+
+
+def tip_steps(controller: Controller, dataset: data.Dataset, sim: Simulator, draws: int, truth: dict) -> dict:
+    """Where the controller's u takes the tip in one step of the true simulator from the true state,
+    against the true next tip: RMS in mm over the transitions of ``truth`` (``_true_steps``, the
+    dataset's first test episodes). A flow also with one seeded draw and with the mean of ``draws``
+    draws (clipped as a plan is): the mean of two valid u need not be one."""
+    check = replace(dataset, test=dataset.test[: len(truth["q"])])
+    planned, _ = held_out_plan(controller, check)
+    row = dict(tip_step_mm=_tip_step(sim, truth, planned))
+    if controller.generative:
+        samples = np.clip(controller.sample(check.states[check.test], draws), -controller.u_limit, controller.u_limit)
+        row.update(
+            tip_step_mm_draw=_tip_step(sim, truth, samples[0]),
+            tip_step_mm_mean_of_draws=_tip_step(sim, truth, samples.mean(0)),
+        )
+    return row
+
+
+def _tip_step(sim: Simulator, truth: dict, u) -> float:
+    """RMS distance (mm) between the tip one sample after (q, qd) under u (E, T, m) and the true next tip."""
+    nq, m = sim.nq, u.shape[-1]
+    reached, _ = sim.integrate(u.reshape(-1, 1, m), truth["q"].reshape(-1, nq), truth["qd"].reshape(-1, nq))
+    error = sim.tip_positions(reached[:, 1]) - truth["tip"].reshape(-1, 3)
+    return 1e3 * float(np.sqrt(np.mean(np.sum(error**2, axis=-1))))
+
+
+def _true_steps(grid: dict, dataset: data.Dataset, sim: Simulator, workdir: Path) -> dict:
+    """The true (q, qd) (E, T, nq) before each transition of the first ``check_episodes`` test
+    episodes and the tip after it (E, T, 3), re-simulated from their u; cached per dataset (both
+    observations share it)."""
+    episodes = dataset.test[: grid["check_episodes"]]
+
+    def compute():
+        q, qd = sim.integrate(dataset.u[episodes], sim.rest_q(), np.zeros(sim.nq))  # (E, T+1, nq) each
+        return dict(q=q[:, :-1], qd=qd[:, :-1], tip=dataset.states[episodes, 1:, :3])
+
+    stem = data.dataset_path(grid["data"], TWO_SEGMENT_ROD, GRAVITY).stem
+    return cached_arrays(cache_file(workdir, "true-steps", dict(dataset=stem, episodes=episodes.tolist())), compute)
+
+
+def _spread(dataset: data.Dataset, workdir: Path) -> dict:
+    """The conditional spread of u given what the model is shown, (x_t, x_t+1), over the training
+    transitions, and the estimator's floor (``ambiguity.conditional_spread``); cached per dataset
+    and observation."""
+
+    def compute():
+        X, u = dataset.states[dataset.train], dataset.u[dataset.train]
+        condition = np.concatenate([X[:, :-1], X[:, 1:]], -1)  # (E, T, 2d)
+        measured = ambiguity.conditional_spread(condition.reshape(-1, condition.shape[-1]), u.reshape(-1, u.shape[-1]))
+        return dict(conditional_spread=measured.spread, conditional_spread_floor=measured.floor)
+
+    cached = cached_arrays(
+        cache_file(workdir, "spread", dict(dataset=dataset.key, episodes=len(dataset.train))), compute
+    )
+    return {k: float(v) for k, v in cached.items()}
+
+
+def _budget(profile_name: str):
+    """The profile with the study's fixed budget for every model (RF-FWD's surrogate too)."""
+    train = TWO_SEGMENT[profile_name]["train"]
+    return replace(get_profile(profile_name), train=train, per_step_train=train)
+
+
+def models(cell: dict, profile_name: str) -> dict:
+    return {} if cell["model"] == FLOOR else trained(cell["model"], _budget(profile_name), seed=cell["seed"])
