@@ -101,6 +101,18 @@ def test_inverse_statics_reaches_the_point_with_no_more_force_than_needed(gravit
     assert np.all(np.linalg.norm(found, axis=1) <= np.linalg.norm(u, axis=1))  # measured ratios 0.65-0.98
 
 
+@pytest.mark.parametrize("gravity", ["none", "vertical"])
+def test_the_rest_tip_needs_no_force_and_an_unreachable_point_is_named(gravity):
+    """At rest the tip cannot move along the rod's axis to first order (d p/d u has rank 2):
+    the least-norm inverse is u = 0, not a division by that zero singular value. A point just
+    beyond the tip (stretching the rod) has no exact fit, and the error says so."""
+    sim = Simulator(TWO_SEGMENT_ROD, gravity=gravity)
+    rest = sim.static_tip(np.zeros((1, 4)))
+    np.testing.assert_array_equal(sim.inverse_static(rest), np.zeros((1, 4)))
+    with pytest.raises(ValueError, match=r"no equilibrium that reaches it exactly .* 4 inputs"):
+        sim.inverse_static(np.array([[0.4, 1e-3, 0.0]]))
+
+
 def test_least_norm_inverse_matches_a_brute_force_search_on_the_closed_form_arcs():
     """Without gravity the tip is the closed-form piecewise arc: SLSQP from 20 random starts
     on it (no GVS involved) finds no reaching u of smaller norm."""

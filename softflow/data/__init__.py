@@ -7,6 +7,7 @@ from softflow.lazy import facade
 EXPORTS = {
     "dataset": [
         "DATA_VERSION",
+        "OBSERVATIONS",
         "BLOCK_EPISODES",
         "Dataset",
         "subset",
@@ -32,6 +33,8 @@ EXPORTS = {
         "SHAPES",
         "shape_points",
         "shape_reference",
+        "least_norm_lift",
+        "depth_circle_reference",
         "burst_circle_reference",
         "actuated_references",
         "random_references",

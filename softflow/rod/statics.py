@@ -29,6 +29,7 @@ MAX_RESIDUAL = 0.25
 NULL_RTOL = 1e-8  # converged when the null-space step is below this fraction of |u|
 _CURVATURE_STEP = 1e-3  # N, forward difference of J along the null space (relative error ~1e-4)
 _HESSIAN_FLOOR = 0.1  # reduced Hessian eigenvalues floored here: a concave stretch still steps downhill in |u|
+_RANK_RTOL = 1e-9  # singular values of d p/d u below this fraction of the largest count as zero
 
 
 def gravity_force(sim, q):
@@ -94,7 +95,9 @@ def _least_norm_step(sim, J, error, u, q, rows):
     is capped at u_bound / 4."""
     U, S, Vh = np.linalg.svd(J)  # (B, r, r), (B, r), (B, m, m)
     r = J.shape[1]
-    pinv = Vh[:, :r].transpose(0, 2, 1) / S[:, None, :] @ U.transpose(0, 2, 1)  # (B, m, r)
+    # A straight rod's tip does not move along its axis to first order: drop such directions.
+    inverse_S = np.divide(1.0, S, out=np.zeros_like(S), where=S > _RANK_RTOL * S[:, :1])  # (B, r)
+    pinv = Vh[:, :r].transpose(0, 2, 1) * inverse_S[:, None, :] @ U.transpose(0, 2, 1)  # (B, m, r)
     N = Vh[:, r:].transpose(0, 2, 1)  # (B, m, k), orthonormal
     multipliers = (pinv.transpose(0, 2, 1) @ u[..., None])[..., 0]  # (B, r)
     curvature = []  # d2 p / du2 [N_a, N_b]: (k) x (B, r, k)
@@ -166,6 +169,12 @@ def inverse_static(sim, p, tol=1e-10, max_iter=50, max_residual=None):
     if len(outside):
         i = outside[0]
         nearest = _nearest_equilibrium(sim, p[i], u0[i])
+        if nearest <= max_residual:  # only a rod fitted exactly (more inputs than three) gets here
+            raise ValueError(
+                f"p[{i}] = {np.round(p[i], 4).tolist()} m has no equilibrium that reaches it exactly "
+                f"(the nearest found is {1e3 * nearest:.3f} mm away): a rod with {sim.n_inputs} inputs "
+                "is fitted exactly, so p must lie inside its static workspace"
+            )
         raise ValueError(
             f"p[{i}] = {np.round(p[i], 4).tolist()} m is outside the static workspace: the nearest "
             f"equilibrium found (|u| <= {sim.u_bound:.1f} N) is {1e3 * nearest:.1f} mm away, more than "

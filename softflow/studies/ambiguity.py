@@ -63,9 +63,10 @@ def conditional_spread(condition, u, *, max_points: int = 200_000, seed: int = 0
 
 def transition_spread(states, u, episodes, **options) -> Spread:
     """The spread of u_t given (x_t, x_t+1) over the transitions of ``episodes`` of a dataset
-    (states (E, T+1, 6), u (E, T, 2))."""
+    (states (E, T+1, S), u (E, T, m))."""
     states, u = np.asarray(states)[episodes], np.asarray(u)[episodes]
-    condition = np.concatenate([states[:, :-1], states[:, 1:]], -1).reshape(-1, 12)
+    condition = np.concatenate([states[:, :-1], states[:, 1:]], -1)  # (E, T, 2S)
+    condition = condition.reshape(-1, condition.shape[-1])
     return conditional_spread(condition, u.reshape(-1, u.shape[-1]), **options)
 
 
@@ -122,7 +123,7 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
     controller = Controller(
         model, cell["model"], robot=variant.robot, u_limit=variant.u_max, observe=variant.observe, workspace_margin=None
     )  # hidden channels shrink the training spread: measure, not refuse
-    measured = dict(_spread(dataset, workdir), **_per_step(controller, dataset, grid["draws"]))
+    measured = dict(_spread(dataset, workdir), **per_step_scores(controller, dataset, grid["draws"]))
     sim = Simulator(variant.robot)
     references = table1_references(sim, profile_name)
     plans = {"zero": {}, f"mean-of-{grid['draws']}": dict(noise="seeded", n_samples=grid["draws"])}
@@ -149,7 +150,7 @@ def _spread(dataset: data.Dataset, workdir: Path) -> dict:
     return {k: float(v) for k, v in cached.items()}
 
 
-def _per_step(controller: Controller, dataset: data.Dataset, draws: int) -> dict:
+def per_step_scores(controller: Controller, dataset: data.Dataset, draws: int) -> dict:
     """u error (N, RMS) on the held-out transitions; for a flow also a single draw's and the
     mean of ``draws`` draws' error, the draws' spread, and the Spearman correlation of the
     spread with the z = 0 error per transition (does its uncertainty flag its mistakes?)."""
@@ -161,7 +162,7 @@ def _per_step(controller: Controller, dataset: data.Dataset, draws: int) -> dict
 
     row = dict(u_rmse_test=error_rms)
     if controller.generative:
-        samples = controller.sample(X, draws)  # (draws, E, T, 2)
+        samples = controller.sample(X, draws)  # (draws, E, T, m)
         spread = np.linalg.norm(samples.std(0), axis=-1)
         error = np.linalg.norm(planned - u, axis=-1)
         row.update(

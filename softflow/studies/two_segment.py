@@ -135,7 +135,7 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
     controller = Controller(model, cell["model"], robot=TWO_SEGMENT_ROD, gravity=GRAVITY, workspace_margin=None)
     measured = dict(
         **_spread(dataset, workdir),
-        **ambiguity._per_step(controller, dataset, grid["draws"]),
+        **ambiguity.per_step_scores(controller, dataset, grid["draws"]),
         **tip_steps(controller, dataset, sim, grid["draws"], _true_steps(grid, dataset, sim, workdir)),
         best_val=float(checkpoint["best_val"]),
         epochs_run=int(checkpoint["epochs_run"]),
@@ -208,9 +208,7 @@ def _spread(dataset: data.Dataset, workdir: Path) -> dict:
     and observation."""
 
     def compute():
-        X, u = dataset.states[dataset.train], dataset.u[dataset.train]
-        condition = np.concatenate([X[:, :-1], X[:, 1:]], -1)  # (E, T, 2d)
-        measured = ambiguity.conditional_spread(condition.reshape(-1, condition.shape[-1]), u.reshape(-1, u.shape[-1]))
+        measured = ambiguity.transition_spread(dataset.states, dataset.u, dataset.train)
         return dict(conditional_spread=measured.spread, conditional_spread_floor=measured.floor)
 
     cached = cached_arrays(
