@@ -150,6 +150,32 @@ def test_cells_with_several_rows_ship_and_read_back_from_the_shipped_csv(tmp_pat
     pd.testing.assert_frame_equal(pd.read_csv(shipped), first.rows)  # not replaced by nothing
 
 
+def test_a_sweep_that_must_not_compute_returns_the_rows_present_and_writes_nothing(tmp_path, monkeypatch):
+    """compute_missing=False (a notebook showing a study of hours): no cell runs, the rows present
+    come back in grid order with the number of cells that have none, and no CSV is written (a
+    sweep still running elsewhere owns them); the shipped paper rows count as present."""
+    monkeypatch.setattr(sweep, "SWEEPS_DIR", tmp_path / "cache")
+    monkeypatch.setattr(sweep, "SHIPPED_RESULTS", tmp_path / "shipped")
+    monkeypatch.setitem(sweep.STUDIES, "multi", Study(_per_reference_cells, _must_not_run))
+    empty = sweep.run_sweep("multi", "paper", client=None, device="cpu", progress=False, compute_missing=False)
+    assert (len(empty.rows), empty.cached, empty.computed, empty.missing, empty.failures) == (0, 0, 0, 2, [])
+    assert not (tmp_path / "cache").exists() and not (tmp_path / "shipped").exists()
+
+    monkeypatch.setitem(sweep.STUDIES, "multi", Study(_per_reference_cells, _per_reference_run))
+    full = sweep.run_sweep("multi", "paper", client=None, device="cpu", progress=False)
+    assert full.missing == 0
+    shipped, csv = tmp_path / "shipped" / "multi-paper.csv", full.csv
+    (tmp_path / "cache" / "multi" / f"{full.rows['key'][0]}.json").unlink()
+    shipped.write_text(pd.read_csv(shipped).iloc[3:].to_csv(index=False))  # only the second cell's rows
+    (tmp_path / "cache" / "multi" / f"{full.rows['key'][3]}.json").unlink()  # ... which only ship
+    before = {path: path.read_bytes() for path in (shipped, csv)}
+    monkeypatch.setitem(sweep.STUDIES, "multi", Study(_per_reference_cells, _must_not_run))
+    part = sweep.run_sweep("multi", "paper", client=None, device="cpu", progress=False, compute_missing=False)
+    assert (part.cached, part.computed, part.missing, part.failures) == (1, 0, 1, [])
+    pd.testing.assert_frame_equal(part.rows, pd.read_csv(shipped))
+    assert {path: path.read_bytes() for path in before} == before
+
+
 def _gappy_run(cell, profile_name, device, workdir, key):  # the first row lacks a middle column, as Table I's shapes do
     return [
         dict(reference="R0", mae=float("nan"), score=0.1 + cell["seed"]),

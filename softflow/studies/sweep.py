@@ -48,6 +48,7 @@ class SweepResult:
     failures: list[Failure]
     cached: int  # cells whose rows came from the cache
     computed: int  # cells run (or attempted) this time
+    missing: int = 0  # cells without rows: failed, or not run (compute_missing=False)
 
 
 def resolve_device(name: str) -> str:
@@ -107,6 +108,7 @@ def run_sweep(
     root: Path | str | None = None,
     shipped: bool = True,
     progress: bool = True,
+    compute_missing: bool = True,
 ) -> SweepResult:
     """Run every cell of ``study`` that has no cached rows, on ``client``'s cluster (``None``:
     here, one after another), and write the tidy CSV of all rows.
@@ -114,7 +116,10 @@ def run_sweep(
     ``root``: the sweep cache (default ``data/sweeps``; only the default one reads and writes
     the shipped paper rows, and only with ``shipped``). ``device`` is resolved where the cells
     run (on a worker of the cluster). A failing cell becomes a ``Failure`` in the result; the
-    rows of the others are cached and written.
+    rows of the others are cached and written. ``compute_missing=False`` only reads: the rows
+    present (shipped and cached) in grid order, ``missing`` says how many cells have none, and
+    nothing runs or is written (a notebook shows a study of hours that a cluster, or a sweep
+    still running, computes; that sweep owns the CSVs).
     """
     check_choice(study, "study", STUDIES)
     get_profile(profile_name)
@@ -130,8 +135,12 @@ def run_sweep(
     rows = _shipped_rows(shipped_csv, keys) if shipped and shipped_csv is not None else {}
     rows.update({key: cached for key in keys if (cached := _cached_rows(workdir / f"{key}.json")) is not None})
     missing = [(key, cell) for key, cell in zip(keys, cells) if key not in rows]
-    failures = []
     csv = root / f"{study}-{profile_name}.csv"
+    if not compute_missing:
+        return SweepResult(
+            csv, _table(rows, keys), [], cached=len(cells) - len(missing), computed=0, missing=len(missing)
+        )
+    failures = []
     bar = tqdm(total=len(cells), initial=len(rows), desc=f"sweep {study}", unit="cell", disable=not progress)
     for key, cell, outcome in _outcomes(study, missing, profile_name, device, workdir, client):
         if isinstance(outcome, Exception):
@@ -143,18 +152,25 @@ def run_sweep(
         bar.update(1)
     bar.close()
     table = _write_tables(rows, keys, csv, None if shipped else shipped_csv, shipped)  # new rows shipped as they came
-    return SweepResult(csv, table, failures, cached=len(cells) - len(missing), computed=len(missing))
+    return SweepResult(
+        csv, table, failures, cached=len(cells) - len(missing), computed=len(missing), missing=len(failures)
+    )
 
 
 def _write_tables(rows: dict, keys, csv: Path, shipped_csv: Path | None, shipped: bool) -> pd.DataFrame:
     """The rows so far in grid order, written to the CSV and, for the paper profile, to the
     shipped CSV, which is replaced only by a superset: these rows include its rows unless the
     sweep recomputes them (shipped=False) and has not finished."""
-    table = pd.DataFrame([row for key in keys for row in rows.get(key, [])])
+    table = _table(rows, keys)
     write_text(csv, table.to_csv(index=False))
     if shipped_csv is not None and len(table) and (shipped or len(rows) == len(keys)):
         write_text(shipped_csv, table.to_csv(index=False))
     return table
+
+
+def _table(rows: dict, keys) -> pd.DataFrame:
+    """The rows of the cells in ``keys`` that have some, in grid order (no columns without rows)."""
+    return pd.DataFrame([row for key in keys for row in rows.get(key, [])])
 
 
 def _cached_rows(path: Path) -> list[dict] | None:
