@@ -9,11 +9,13 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from softflow.data import OBSERVATIONS
 from softflow.hardware.twin import GAP_TERMS
 from softflow.report.tables import BASELINES, LABELS, MODELS, RF_FAMILY
 from softflow.studies import stats
 from softflow.studies.closed_loop import CAMERA_LATENCY
 from softflow.studies.study import FLOOR
+from softflow.studies.two_segment import FLOOR_OBSERVATION
 
 # ---------------------------------------------------------------------------- the sweeps (notebook 08)
 
@@ -36,21 +38,26 @@ def interval_text(summary: pd.DataFrame, digits: int = 2) -> pd.Series:
 
 def with_ci(rows: pd.DataFrame, value: str, family: str) -> pd.DataFrame:
     """Mean of ``value`` on a reference family per model, with its 95 % bootstrap interval
-    over seeds and references; models in Table I order, the floor last."""
-    part = rows[(rows["family"] == family) & rows[value].notna()]
+    over seeds and references; models in Table I order, the floor last (no rows: no models)."""
+    part = rows[(rows["family"] == family) & rows[value].notna()] if len(rows) else rows
+    if part.empty:
+        return pd.DataFrame(columns=["mean", "low", "high", "seeds", "references"]).rename_axis("model")
     table = stats.summarise(part, value, by=("model",)).set_index("model")
     return table.reindex(table_order(table.index))
 
 
-def table1_ci(rows: pd.DataFrame) -> pd.DataFrame:
+def table1_ci(rows: pd.DataFrame, families=("shape", "random")) -> pd.DataFrame:
     """Table I from the table1 sweep: "mean [low, high]" in mm per model and family, and the
-    seeds and references behind each."""
+    seeds and references behind each (a model a family lacks: empty cells)."""
     columns = {}
-    for family, label in (("shape", "shape_mm"), ("random", "random_mm")):
+    for family in families:
         summary = with_ci(rows, "rmse_mm", family)
-        columns[label] = interval_text(summary)
-        columns[f"{family}_seeds x refs"] = summary.apply(lambda r: f"{r.seeds:.0f} x {r.references:.0f}", axis=1)
-    return pd.DataFrame(columns).rename_axis("model")
+        columns[f"{family}_mm"] = interval_text(summary)
+        columns[f"{family}_seeds x refs"] = pd.Series(
+            [f"{r.seeds:.0f} x {r.references:.0f}" for r in summary.itertuples()], index=summary.index
+        )
+    table = pd.DataFrame(columns)
+    return table.reindex(table_order(table.index)).rename_axis("model")
 
 
 def compare(rows: pd.DataFrame, model: str, other: str, family: str, value: str = "rmse_mm"):
@@ -71,15 +78,22 @@ def _interval_columns(interval, t, prefix: str = "", estimate: str = "difference
     }
 
 
-def best_against_best(rows: pd.DataFrame, value: str = "rmse_mm") -> pd.DataFrame:
+BEST_AGAINST_BEST = ("family", "best_rf", "best_baseline", "difference_mm", "low", "high", "t_low", "t_high", "verdict")
+
+
+def best_against_best(rows: pd.DataFrame, value: str = "rmse_mm", families=("shape", "random")) -> pd.DataFrame:
     """Per family: the best RF variant minus the best baseline (best: lowest mean), with its
     bootstrap (low, high) and paired t-interval (t_low, t_high); a ranking is stated only where
-    both exclude 0. (Picking the best of each group from the same rows biases the difference
-    towards 0.)"""
+    both exclude 0. A family without an RF variant or a baseline in the rows (a grid, or a
+    sweep not finished, that lacks one) is left out. (Picking the best of each group from the
+    same rows biases the difference towards 0.)"""
     out = []
-    for family in ("shape", "random"):
+    for family in families:
         means = with_ci(rows, value, family)["mean"]
-        rf, baseline = means.reindex(RF_FAMILY).idxmin(), means.reindex(BASELINES).idxmin()
+        rfs, baselines = means.reindex(RF_FAMILY).dropna(), means.reindex(BASELINES).dropna()
+        if rfs.empty or baselines.empty:
+            continue
+        rf, baseline = rfs.idxmin(), baselines.idxmin()
         interval, t = compare(rows, rf, baseline, family, value)
         side = stats.ranking(interval, t)
         verdict = f"{LABELS[rf]} {'lower' if side < 0 else 'higher'}" if side else "no ranking (an interval contains 0)"
@@ -92,7 +106,7 @@ def best_against_best(rows: pd.DataFrame, value: str = "rmse_mm") -> pd.DataFram
                 verdict=verdict,
             )
         )
-    return pd.DataFrame(out).set_index("family")
+    return pd.DataFrame(out, columns=BEST_AGAINST_BEST).set_index("family")
 
 
 def protocol_table(rows: pd.DataFrame, family: str = "shape") -> pd.DataFrame:
@@ -238,6 +252,97 @@ def floor_progress(rows: pd.DataFrame, iterations: int) -> tuple[int, int]:
     when it stopped, so the floor is at most its number."""
     trials = rows.loc[rows["model"] == FLOOR, "ilc_best_trial"]
     return int((trials == iterations).sum()), len(trials)
+
+
+# ---------------------------------------------------------------------------- two segments (notebook 12)
+# Per-step measures of the two_segment study, one per trained model (u in N, RMS per input; tip in mm).
+TWO_SEGMENT_STEP = (
+    "u_rmse_test",
+    "u_rmse_draw",
+    "u_rmse_mean_of_draws",
+    "draw_spread",
+    "tip_step_mm",
+    "tip_step_mm_draw",
+    "tip_step_mm_mean_of_draws",
+)
+_RANKS = {  # the order of a two-segment table's rows: observations as the study lists them, models as Table I
+    "observation": {name: k for k, name in enumerate((*OBSERVATIONS, FLOOR_OBSERVATION))},
+    "model": {name: k for k, name in enumerate((*MODELS, FLOOR))},
+}
+
+
+def _ordered(table: pd.DataFrame) -> pd.DataFrame:
+    return table.sort_index(key=lambda level: level.map(_RANKS[level.name])) if len(table) else table
+
+
+def _zero_plans(rows: pd.DataFrame) -> pd.DataFrame:
+    """The rows of z = 0 plans, and the floor's (which has no plan): what Table I scores."""
+    if rows.empty or "plan" not in rows:
+        return rows
+    return rows[rows["plan"].isna() | (rows["plan"] == "zero")]
+
+
+def _families(rows: pd.DataFrame) -> list:
+    return list(dict.fromkeys(rows["family"])) if len(rows) else []
+
+
+def two_segment_table(rows: pd.DataFrame) -> pd.DataFrame:
+    """Table I of the two_segment study: per observation and model (the ILC floor last, as the
+    observation "simulator", where the grid has one), "mean [low, high]" tracking RMSE in mm of
+    the z = 0 plans per reference family present, and the seeds and references behind it; the
+    rows of an unfinished sweep give the cells they hold, no rows an empty table."""
+    zero = _zero_plans(rows)
+    if zero.empty:
+        return pd.DataFrame(index=pd.MultiIndex.from_tuples([], names=["observation", "model"]))
+    families = _families(zero)
+    parts = {obs: table1_ci(part, families) for obs, part in zero.groupby("observation", sort=False)}
+    return _ordered(pd.concat(parts, names=["observation", "model"]))
+
+
+def two_segment_differences(rows: pd.DataFrame) -> pd.DataFrame:
+    """The study's decision rule per observation and family: best RF variant minus best baseline
+    in tracking RMSE of the z = 0 plans (``best_against_best``), a verdict only where both
+    intervals exclude zero; an observation or family without both groups is left out."""
+    zero, parts = _zero_plans(rows), {}
+    for observation, part in zero.groupby("observation") if len(zero) else ():
+        table = best_against_best(part, families=_families(part))
+        if observation != FLOOR_OBSERVATION and len(table):
+            parts[observation] = table
+    if not parts:
+        empty = pd.DataFrame(columns=["observation", *BEST_AGAINST_BEST])
+        return empty.set_index(["observation", "family"])
+    return pd.concat(parts, names=["observation", "family"]).sort_index(
+        level="observation", key=lambda level: level.map(_RANKS["observation"]), sort_remaining=False
+    )
+
+
+def two_segment_per_step(rows: pd.DataFrame) -> pd.DataFrame:
+    """Per observation and model: the per-step measures present (``TWO_SEGMENT_STEP``) as means
+    over seeds, the seed spread (standard deviation, NaN for one seed) of the u error and of
+    ``tip_step_mm``, and the number of seeds. No ranking: one number per trained model leaves
+    nothing to pair over."""
+    models = rows[rows["model"] != FLOOR] if len(rows) else rows
+    values = [value for value in TWO_SEGMENT_STEP if value in models]
+    if models.empty or not values:
+        return pd.DataFrame(index=pd.MultiIndex.from_tuples([], names=["observation", "model"]))
+    by = ["observation", "model"]
+    table = per_step_table(models, by, values)
+    per_model = models.drop_duplicates(subset=[*by, "seed"]).groupby(by, sort=False)
+    spread = per_model[["u_rmse_test", "tip_step_mm"]].std().add_suffix("_sd")
+    return _ordered(table.join(spread).assign(seeds=per_model["seed"].nunique()))
+
+
+def two_segment_spread(rows: pd.DataFrame) -> pd.DataFrame:
+    """Per observation of the models' data: the conditional spread of u given (x_t, x_t+1) over
+    the training transitions (N, all inputs together), its estimator floor and their ratio (1:
+    no ambiguity measurable), as the study's rows carry them (one dataset per observation)."""
+    columns = ["conditional_spread", "conditional_spread_floor"]
+    measured = rows.dropna(subset=columns) if len(rows) and set(columns) <= set(rows) else pd.DataFrame()
+    if measured.empty:
+        return pd.DataFrame(columns=[*columns, "spread / floor"]).rename_axis("observation")
+    table = measured.groupby("observation", sort=False)[columns].mean()
+    table = table.sort_index(key=lambda level: level.map(_RANKS["observation"]))
+    return table.assign(**{"spread / floor": table["conditional_spread"] / table["conditional_spread_floor"]})
 
 
 # Where each study's verdicts sit in its table: label -> (study, column prefixes of the

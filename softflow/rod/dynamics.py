@@ -42,6 +42,7 @@ GRAVITY_DIRECTIONS = {
 # D2): tip velocity 1.4e-8 relative error; convective force 4e-7, where round-off of the
 # second difference dominates (truncation ~eps^2 takes over above 3e-3; 1e-2 gives 6e-7).
 _CONVECTIVE_STEP = 1e-3  # 1/m
+_REACH = 1e-9  # m: fit_holding's tip must be this close to p (an exact fit, 3 equations in m - 1 >= 3 unknowns)
 
 
 class Simulator:
@@ -331,6 +332,44 @@ class Simulator:
         if p.shape[0] == 0:
             raise ValueError("p must hold at least one point (its batch axis is empty)")
         return statics.inverse_static(self, p, tol, max_iter, max_residual)
+
+    def fit_holding(self, p, index: int, value, start=None, tol=1e-10, max_iter=50):
+        """Actuation (B, m) with input ``index`` held at ``value`` (N; a number or one per point,
+        (B,)) whose equilibrium tip is p (B, 3), for a rod with more inputs than three
+        (``TWO_SEGMENT_ROD``): another u than ``inverse_static``'s least-norm one that puts the
+        tip at the same point, e.g. u_1 one newton above it. Gauss-Newton on the other inputs
+        from ``start`` (B, m) (default the tip cables' arc through p). ValueError where no
+        equilibrium with that input held reaches a point (within |u| <= u_bound)."""
+        if self.n_inputs <= 3:
+            raise ValueError(
+                f"fit_holding needs a rod with more inputs than the tip's 3 coordinates; {self.robot.name!r} has "
+                f"{self.n_inputs}, whose tip fixes u (use inverse_static)"
+            )
+        if isinstance(index, bool) or not isinstance(index, (int, np.integer)) or not 0 <= index < self.n_inputs:
+            raise ValueError(f"index must be an input's index, an integer in [0, {self.n_inputs - 1}]; got {index!r}")
+        p, _ = as_real_array(p, "p", (None, 3))
+        if p.shape[0] == 0:
+            raise ValueError("p must hold at least one point (its batch axis is empty)")
+        value = as_real_array(
+            np.broadcast_to(value, p.shape[:1]) if np.ndim(value) == 0 else value, "value", (len(p),)
+        )[0]
+        if start is not None:
+            start = self._actuation(start, (len(p), self.n_inputs))
+        try:
+            u, tip = statics.fit_holding(self, p, index, value, start, tol, max_iter, u_limit=self.u_bound)
+        except (RuntimeError, np.linalg.LinAlgError) as error:
+            raise ValueError(
+                f"no equilibrium with u{index + 1} held at the values given reaches every point of p "
+                f"within |u| <= {self.u_bound:.1f} N ({error}): hold it nearer inverse_static(p)'s u{index + 1}"
+            ) from error
+        miss = np.linalg.norm(tip - p, axis=-1)
+        if miss.max() > _REACH:
+            i = int(miss.argmax())
+            raise ValueError(
+                f"p[{i}] = {np.round(p[i], 4).tolist()} m is not reached with u{index + 1} held at {value[i]:.3f} N "
+                f"(the fit stops {1e3 * miss[i]:.3g} mm away): hold it nearer inverse_static(p)'s u{index + 1}"
+            )
+        return u
 
     def static_lift(self, yz, u_max: float = U_MAX):
         """The equilibrium whose tip has lateral position yz (B, 2): tip p (B, 3), actuation

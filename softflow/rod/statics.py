@@ -141,6 +141,34 @@ def fit_static(sim, target, rows, u, tol=1e-10, max_iter=50, u_limit=np.inf):
     raise RuntimeError(f"static fit did not converge in {max_iter} Gauss-Newton steps")
 
 
+def fit_holding(sim, p, index, value, u=None, tol=1e-10, max_iter=50, u_limit=np.inf):
+    """The actuation (B, m) with input ``index`` held at ``value`` (a number or (B,)) whose
+    equilibrium tip is p (B, 3): another point than the least-norm one (S4) of the curve of u
+    that reaches p on a rod with more inputs than three, which shows the redundancy. Gauss-Newton
+    on the other inputs through d p/d u (S3), from ``u`` (B, m) (default: the tip cables' arc
+    through p, S2) with the held input set; each step the least-squares one (least-norm if more
+    than three inputs are free; directions the tip cannot move along dropped as in S4), capped at
+    u_bound / 4. Returns u and its tip (B, 3). Raises RuntimeError when it does not converge
+    within ``tol`` (N) or an iterate needs |u| > u_limit."""
+    free = np.delete(np.arange(sim.n_inputs), index)
+    u = arc_actuation(sim.robot, p) if u is None else np.array(u, dtype=float)  # (B, m), a copy
+    u[:, index] = value
+    q = None
+    for _ in range(max_iter):
+        if np.abs(u).max() > u_limit:
+            raise RuntimeError(f"fit with u[{index}] held needs |u| > {u_limit} N")
+        q, Kt = equilibrium(sim, u, q)
+        tip, dp_du = _tip_jacobian(sim, q, Kt)
+        J = dp_du[:, :, free]  # (B, 3, m - 1)
+        step = (np.linalg.pinv(J, rtol=_RANK_RTOL) @ (p - tip)[..., None])[..., 0]  # (B, m - 1)
+        cap = sim.u_bound / 4
+        step *= np.minimum(1.0, cap / np.maximum(np.linalg.norm(step, axis=-1), 1e-300))[:, None]
+        u[:, free] += step
+        if np.abs(step).max() < tol:
+            return u, static_tip(sim, u)
+    raise RuntimeError(f"fit with u[{index}] held did not converge in {max_iter} Gauss-Newton steps")
+
+
 def static_tip(sim, u):
     """Equilibrium tip position for constant actuation u (B, m) -> (B, 3)."""
     return sim.kinematics.tip_positions(equilibrium(sim, u)[0])
