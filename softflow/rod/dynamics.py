@@ -42,7 +42,17 @@ GRAVITY_DIRECTIONS = {
 # D2): tip velocity 1.4e-8 relative error; convective force 4e-7, where round-off of the
 # second difference dominates (truncation ~eps^2 takes over above 3e-3; 1e-2 gives 6e-7).
 _CONVECTIVE_STEP = 1e-3  # 1/m
+# Episodes a rollout thread gets at least: below this a step is numpy call overhead under the
+# GIL, and splitting the batch doubles the overhead instead of sharing the work.
+MIN_THREAD_CHUNK = 64
 _REACH = 1e-9  # m: fit_holding's tip must be this close to p (an exact fit, 3 equations in m - 1 >= 3 unknowns)
+
+
+def _default_threads() -> int:
+    """Up to 2 rollout threads, fewer where the machine or $OMP_NUM_THREADS allows fewer."""
+    budget = os.environ.get("OMP_NUM_THREADS", "")
+    cap = int(budget) if budget.isdigit() and int(budget) > 0 else 2
+    return max(1, min(2, os.cpu_count() or 1, cap))
 
 
 class Simulator:
@@ -61,7 +71,8 @@ class Simulator:
     substeps: time steps per ``dt`` sample.
     damping: False switches the Kelvin-Voigt damping off (for validation).
     threads, chunk_size: rollouts run in chunks of ``chunk_size`` episodes on
-        ``threads`` threads (default: up to 2); results do not depend on either.
+        ``threads`` threads (default: up to 2, at most $OMP_NUM_THREADS where set: a caller
+        that budgets one thread per process means it); results do not depend on either.
     """
 
     def __init__(
@@ -100,7 +111,7 @@ class Simulator:
             raise ValueError(f"dt must be a positive number of seconds; got {dt!r}")
         self.robot, self.gravity, self.order, self.damping = robot, gravity, order, damping
         self.n_segments, self.substeps, self.dt = n_segments, substeps, dt
-        self.threads, self.chunk_size = threads or min(2, os.cpu_count() or 1), chunk_size
+        self.threads, self.chunk_size = threads or _default_threads(), chunk_size
         self.g = GRAVITY_DIRECTIONS[gravity]
         self.kinematics = RodKinematics(robot.segment_lengths, order, n_segments)
         self.n_modes, self.nq, self.n_inputs = self.kinematics.n_modes, self.kinematics.nq, robot.n_inputs
@@ -272,7 +283,8 @@ class Simulator:
     def _map_chunks(self, work, B, progress):
         """Run work(slice) over cache-sized chunks of the batch on a thread pool (numpy
         releases the GIL) and concatenate the results along the batch axis."""
-        size = min(self.chunk_size, -(-B // self.threads))  # every thread gets work
+        # every thread gets work, but never so little that per-step overhead outweighs it
+        size = min(self.chunk_size, max(MIN_THREAD_CHUNK, -(-B // self.threads)))
         chunks = [slice(i, min(i + size, B)) for i in range(0, B, size)]
         if len(chunks) == 1 and not progress:  # a closed loop's step: a pool's thread costs more than the work
             return list(work(chunks[0]))
