@@ -658,3 +658,74 @@ def consistency_weight(summary, diagnostics, taus):
     ax_tau.set(xlabel="tau", ylabel="endpoint u error [N]")
     ax_tau.legend(ncol=2)
     return fig
+
+
+@_styled
+def redundancy(along, histories: dict, shapes: dict, disks: dict, instant: int):
+    """One tip path reached statically by several input histories of a redundant rod, each
+    history in its own line style: its inputs along the path (``histories``: {label: u (K, m)},
+    a colour per input), the rod's centreline under it at sample ``instant`` seen along the rod's
+    axis (``shapes``: {label: (N+1, 3)}), and the paths of the tip (thick) and of the inner disks
+    (thin) in y-z (``disks``: {label: (K, S, 3)}, the tip last), the instant's disks circled.
+    ``along``: the path's parameter (K,), its angle in degrees."""
+    styles = dict(zip(histories, ["-", "--", ":", "-."]))
+    fig, (ax_u, ax_rod, ax_path) = plt.subplots(1, 3, figsize=(10.5, 3.6))
+    for label, u in histories.items():
+        for i in range(u.shape[1]):
+            ax_u.plot(along, u[:, i], styles[label], color=f"C{i}")
+    ax_u.axvline(along[instant], color="0.6", lw=0.8)
+    ax_u.set(xlabel="along the path [deg]", ylabel="u [N]", title="input histories")
+    for label, line in shapes.items():
+        ax_rod.plot(line[:, 1] * MM, line[:, 2] * MM, styles[label], color="k")
+        ax_rod.plot(disks[label][instant, :, 1] * MM, disks[label][instant, :, 2] * MM, "o", mfc="none", color="k")
+    ax_rod.plot(0, 0, "ks", ms=4)
+    ax_rod.set(xlabel="y [mm]", ylabel="z [mm]", title="the rod, seen along x (base: square)", aspect="equal")
+    for label, points in disks.items():
+        for s in range(points.shape[1]):
+            tip = s == points.shape[1] - 1
+            ax_path.plot(
+                points[:, s, 1] * MM,
+                points[:, s, 2] * MM,
+                styles[label],
+                color="k" if tip else "0.5",
+                lw=2.4 if tip else 1.2,
+            )
+        ax_path.plot(points[instant, :, 1] * MM, points[instant, :, 2] * MM, "o", mfc="none", color="k")
+    ax_path.set(xlabel="y [mm]", ylabel="z [mm]", title="tip (black), middle disk (grey)", aspect="equal")
+    handles = [
+        Line2D([], [], color=f"C{i}", label=f"$u_{i + 1}$") for i in range(next(iter(histories.values())).shape[1])
+    ]
+    handles += [Line2D([], [], color="k", ls=style, label=label) for label, style in styles.items()]
+    fig.legend(handles=handles, loc="outside lower center", ncol=len(handles))
+    return fig
+
+
+@_styled
+def tracking_depth(runs: dict, references: dict, names, dt: float):
+    """Open-loop tracking of 3-D references per reference (columns): the y-z path (top) and the
+    depth x over time (bottom), the reference dashed, each run solid in its model's colour.
+    ``runs``: {"observation, model": {reference name: dict(states=(T+1, d))}}; a second
+    observation of the same model is drawn dotted."""
+    fig, axes = plt.subplots(2, len(names), figsize=(3.3 * len(names), 5.2), squeeze=False)
+    observations = list(dict.fromkeys(label.split(", ")[0] for label in runs))
+    for col, name in enumerate(names):
+        r, (ax_yz, ax_x) = references[name], axes[:, col]
+        t = np.arange(len(r.states)) * dt
+        ax_yz.plot(r.states[r.mask, 1] * MM, r.states[r.mask, 2] * MM, "k--", lw=1.5, label="reference")
+        ax_x.plot(t[r.mask], r.states[r.mask, 0] * MM, "k--", lw=1.5)
+        for k, (label, model_runs) in enumerate(runs.items()):
+            observation, model = label.split(", ")
+            X = model_runs[name]["states"]
+            style = dict(
+                color=colour(model, k),
+                ls="-" if observation == observations[0] else ":",
+                lw=1.2,
+                label=f"{LABELS.get(model, model)} ({observation})",
+            )
+            ax_yz.plot(X[r.mask, 1] * MM, X[r.mask, 2] * MM, **style)
+            ax_x.plot(t[r.mask], X[r.mask, 0] * MM, **style)
+        _start_markers(ax_yz, r)
+        ax_yz.set(title=name, xlabel="y [mm]", ylabel="z [mm]", aspect="equal")
+        ax_x.set(xlabel="t [s]", ylabel="depth x [mm]")
+    _figure_legend(fig, axes[0, -1], 4)
+    return fig
