@@ -3,13 +3,17 @@ no training (a shipped model scored), that cell is recomputed in the paper profi
 with the shipped rows found by today's key. This pins both the numbers and the keys (a key that
 changed without a migration would find no rows). Other studies train in every cell (data_size,
 ambiguity, fwd_lambda) or score the coverage by the paper dataset's 3000 episodes (protocol),
-which a fresh clone would simulate first: they are left to ``make study``."""
+which a fresh clone would simulate first: they are left to ``make study``.
+
+The cell runs through its own ``run`` on a few of its references (references are scored
+independently: a plan, a replay and the camera's noise per reference), which keeps the test to
+seconds where the whole cell takes minutes."""
 
 import numpy as np
 import pandas as pd
 import pytest
 
-from softflow.studies import STUDIES, sweep
+from softflow.studies import STUDIES, closed_loop, sweep, table1
 
 CELLS = {
     "table1": dict(study="table1", model="mlp", seed=0),
@@ -17,16 +21,33 @@ CELLS = {
 }
 
 
+def _fewer_references(monkeypatch, study):
+    """The cell's reference list cut to a shape and a random reference (table1) or to the first
+    (closed_loop), in the module the cell reads it from."""
+    if study == "table1":
+        every = table1.table1_references
+
+        def a_shape_and_a_random(sim, profile_name):
+            made = every(sim, profile_name)
+            return [made[0], made[-1]]
+
+        monkeypatch.setattr(table1, "table1_references", a_shape_and_a_random)
+    else:
+        every = closed_loop.hardware_references
+        monkeypatch.setattr(closed_loop, "hardware_references", lambda sim: every(sim)[:1])
+
+
 @pytest.mark.parametrize("study", CELLS)
-def test_a_cheap_paper_cell_reproduces_its_shipped_rows(study, tmp_path):
+def test_a_cheap_paper_cell_reproduces_its_shipped_rows(study, tmp_path, monkeypatch):
     cell = CELLS[study]
     assert cell in STUDIES[study].cells("paper")
     key = sweep.cell_key(study, cell, "paper", "cpu")
     shipped = pd.read_csv(sweep.SHIPPED_RESULTS / f"{study}-paper.csv", dtype={"key": str})
     shipped = shipped[shipped.key == key].set_index("reference")
     assert len(shipped), f"no shipped row has today's key {key} for {cell}"
+    _fewer_references(monkeypatch, study)
     rows = pd.DataFrame(STUDIES[study].run_cell(cell, "paper", "cpu", tmp_path, key)).set_index("reference")
-    assert sorted(rows.index) == sorted(shipped.index)
+    assert 0 < len(rows) < len(shipped) and set(rows.index) <= set(shipped.index)
     for column in rows.columns:
         if column in shipped and pd.api.types.is_numeric_dtype(rows[column]):
             # BLAS kernels differ across CPUs: on an AVX-512 Xeon the old and the new code alike give
