@@ -109,7 +109,7 @@ def test_horizontal_sag_matches_the_heavy_elastica():
 
 
 def test_tip_converges_with_basis_order_and_step(random_actuation):
-    u = random_actuation[:1, :300]  # 3 s of one episode (notebook 01 runs the full study)
+    u = random_actuation[:1, :150]  # 1.5 s of one episode (notebook 01 runs the full study)
     errors = convergence_study(
         SIM_ROBOT, u, dict(order=7, n_segments=64, substeps=8), {"order": [dict(order=k) for k in range(4)]}
     )["order"]
