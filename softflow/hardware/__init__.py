@@ -1,5 +1,6 @@
-"""The hardware twin: reality gap, cable plant and motor commands, camera and tracking,
-system identification, calibration, and the replay experiment. Imports control and below.
+"""The hardware twin: reality gap (cable friction among its terms), cable plant and motor
+commands, camera and tracking, system identification, calibration, the replay experiment, and
+the twin as a recording rig. Imports control and below.
 """
 
 from softflow.lazy import facade
@@ -13,6 +14,12 @@ EXPORTS = {
         "GAP_TERMS",
         "NO_GAP",
         "TYPICAL_GAP",
+        "FRICTION_GAP",
+        "SLIDING_LENGTH",
+        "dahl_state",
+        "capstan_tensions",
+        "HysteresisLoop",
+        "hysteresis_loop",
         "calibrate_sag",
         "cable_commands",
         "rest_command",

@@ -11,12 +11,14 @@ averaged over the control step.
 
 The plant is the same rod with every term of ``RealityGap``: its E, eta, rho are off,
 motors follow their commands with a first-order lag, each cable has its own slack
-(tension k max(0, stretch - slack)), and the camera adds its noise. Cable tension is
+(tension k max(0, stretch - slack)), the cables rub in the spacer disks (capstan friction
+with a Dahl state, ``capstan_tensions``), and the camera adds its noise. Cable tension is
 re-evaluated every quarter step, as the physical cable would.
 """
 
 from __future__ import annotations
 
+import functools
 from dataclasses import asdict, dataclass, replace
 
 import numpy as np
@@ -26,11 +28,14 @@ from softflow.checks import as_real_array
 from softflow.hardware import vision
 from softflow.rod.cables import cable_actuation, cable_displacements, cable_tensions
 from softflow.rod.dynamics import Simulator
-from softflow.rod.robots import DT, Robot
+from softflow.rod.robots import DT, HW_ROBOT, U_MAX, Robot
 
 CABLE_STIFFNESS = 1000.0  # N/m, line + guides + motor mount in series (assumed; docs/assumptions.md)
 PRETENSION = 1.0  # N, the slackest cable's tension: keeps every cable taut
 CAMERA_DISTANCE = 0.4  # m, camera beyond the rest tip, looking back along the rod
+SLIDING_LENGTH = 5e-4  # m, the Dahl sliding length of a cable in its holes (assumed; docs/assumptions.md)
+ADDED_TERMS = ("cable_friction", "sliding_length")  # out of a gap's key while at their defaults
+LOOP_PERIOD = 20.0  # s, the slower of hysteresis_loop's two cycles (10 s rings the rod: docs/assumptions.md)
 
 
 @dataclass(frozen=True)
@@ -45,6 +50,8 @@ class RealityGap:
     depth_noise: float = 0.0  # m at 1 m, the camera's depth noise (grows with Z^2)
     pixel_noise: float = 0.0  # colour noise of the camera, 0-255
     seed: int = 0
+    cable_friction: float = 0.0  # mu, Coulomb coefficient of a cable in the spacer disks' holes
+    sliding_length: float = SLIDING_LENGTH  # m of sliding over which friction builds up (Dahl: F_c / sigma_0)
 
     def __post_init__(self):
         for name, value in asdict(self).items():
@@ -55,6 +62,19 @@ class RealityGap:
                 raise ValueError(f"{name} must be >= 0; got {getattr(self, name)!r}")
         if min(self.youngs_modulus, self.damping, self.density) <= -1:
             raise ValueError("relative parameter errors must be > -1 (a positive parameter stays positive)")
+        if self.cable_friction < 0:
+            raise ValueError(
+                "cable_friction must be a friction coefficient >= 0 (0: frictionless cables); "
+                f"got {self.cable_friction!r}"
+            )
+        if not self.sliding_length > 0:
+            raise ValueError(f"sliding_length must be a length > 0 m (Dahl's); got {self.sliding_length!r}")
+
+    def parameters(self) -> dict:
+        """The terms that key caches: a term added later counts only when it differs from its
+        default, so every gap that existed keeps its key (use this, not ``asdict``, in a key)."""
+        defaults = {name: RealityGap.__dataclass_fields__[name].default for name in ADDED_TERMS}
+        return {k: v for k, v in asdict(self).items() if not (k in defaults and v == defaults[k])}
 
     def plant_robot(self, robot: Robot) -> Robot:
         return replace(
@@ -78,6 +98,36 @@ NO_GAP = RealityGap()
 TYPICAL_GAP = RealityGap(
     youngs_modulus=-0.15, damping=0.20, density=0.10, motor_lag=0.02, slack=3e-4, depth_noise=1e-3, pixel_noise=3.0
 )
+# The typical gap with cables that rub in their holes: nylon line in printed-plastic disks
+# (mu assumed, docs/assumptions.md), a hysteresis loop of a few per cent of the reach.
+FRICTION_GAP = replace(TYPICAL_GAP, cable_friction=0.15)
+
+
+def dahl_state(state, sliding, sliding_length: float):
+    """The friction state z (B, C) in [-1, 1] after each cable slid by ``sliding`` (B, C) m
+    (positive: towards its motor). Dahl's model dz/dx = (1 - z sgn(dx)) / x_s, solved exactly
+    over a step of one sign: z' = s + (z - s) exp(-|dx| / x_s), s = sgn(dx). Sticking (|dx| <<
+    x_s) barely moves z; sliding (|dx| >> x_s) takes it to +-1. Rate-independent, smooth, and
+    bounded for any step, so it needs no finer time step than the plant's."""
+    direction = np.sign(sliding)
+    return direction + (state - direction) * np.exp(-np.abs(sliding) / sliding_length)
+
+
+def capstan_tensions(base, turning, friction: float, state):
+    """Tension at the anchored end and mean tension along the cable (B, C) each, for the
+    tension ``base`` at the motor end, the cable's total turning ``turning`` (rad) through the
+    disks, the friction coefficient and the friction state z (all (B, C) or broadcastable).
+
+    Capstan: where the cable slides towards its motor (z = 1) the tension falls along it as
+    exp(-mu phi), phi the turning from the base, so the anchored end carries T_b exp(-mu theta);
+    sliding away (z = -1) it rises as exp(+mu phi); in between z scales the exponent,
+    a = mu theta z. Turning grows along an arc at a constant rate, so the mean along the cable
+    is T_b (1 - exp(-a)) / a (series below |a| = 1e-4, never divided by a small a)."""
+    exponent = friction * np.asarray(turning) * state  # (B, C)
+    small = np.abs(exponent) < 1e-4
+    safe = np.where(small, 1.0, exponent)
+    mean_factor = np.where(small, 1 - exponent / 2 + exponent**2 / 6, -np.expm1(-safe) / safe)
+    return base * np.exp(-exponent), base * mean_factor
 
 
 def calibrate_sag(robot: Robot, rest_tip, *, gravity: str) -> Robot:
@@ -195,26 +245,64 @@ class CablePlant:
         )
         self.sim = Simulator(gap.plant_robot(robot), gravity, dt=DT / substeps, substeps=1, threads=1)
         self.slack = np.random.default_rng(gap.seed).uniform(0.0, gap.slack, robot.n_cables)
+        # the anchor group (an input pair) of each cable: its turning is that group's bend
+        self.cable_group = np.zeros(robot.n_cables, int)
+        for g, cables in enumerate(robot.cable_groups):
+            self.cable_group[list(cables)] = g
 
     def _cable_stretch(self, motor, q):
         return motor + cable_displacements(self.sim.bend_angles(q), self.robot) - self.slack
 
     def reset(self, batch: int = 1) -> None:
         """``batch`` rods at rest, every motor holding the command of the rest pose (its
-        pretension, less any slack): the state ``step`` advances."""
+        pretension, less any slack), the cables' friction relaxed: the state ``step`` advances."""
         sim = self.sim
         self.q, self.qd = np.repeat(sim.rest_q()[None], batch, 0), np.zeros((batch, sim.nq))
         self.motor = np.repeat(rest_command(sim, self.stiffness, self.pretension)[None], batch, 0)
+        self.friction_state = np.zeros_like(self.motor)  # (B, C), Dahl's z
+        self.sliding = self._sliding(self.motor, self.q)  # (B, C), m
+
+    def _sliding(self, motor, q):
+        """How far each cable has slid through the disks towards its motor, up to a constant
+        (B, C): the motor's pull-in minus the path-length change (m)."""
+        return motor - cable_displacements(self.sim.bend_angles(q), self.robot)
+
+    def _turning(self, bend_angles):
+        """Each cable's total turning through the disks (B, C), rad, for bend angles (B, m):
+        the norm of its anchor group's pair, exact for an arc, a lower bound for other shapes."""
+        return np.hypot(bend_angles[:, 0::2], bend_angles[:, 1::2])[:, self.cable_group]
+
+    def cable_tensions(self) -> dict:
+        """Tensions (B, C) now at the motor end (``base``), at the anchor (``anchored``) and
+        the mean along each cable (``mean``, what bends the rod). After ``reset``."""
+        base = self.stiffness * np.maximum(self._cable_stretch(self.motor, self.q), 0.0)
+        turning = self._turning(self.sim.bend_angles(self.q))
+        anchored, mean = capstan_tensions(base, turning, self.gap.cable_friction, self.friction_state)
+        return dict(base=base, anchored=anchored, mean=mean)
+
+    def _rubbing_tension(self, q):
+        """The mean tension along each cable (B, C) at shape q (B, nq), its friction state
+        first moved on by the cables' sliding since the last substep."""
+        angles = self.sim.bend_angles(q)  # (B, m)
+        path = cable_displacements(angles, self.robot)  # (B, C)
+        sliding = self.motor - path
+        self.friction_state = dahl_state(self.friction_state, sliding - self.sliding, self.gap.sliding_length)
+        self.sliding = sliding
+        base = self.stiffness * np.maximum(self.motor + path - self.slack, 0.0)  # (B, C), at the motors
+        return capstan_tensions(base, self._turning(angles), self.gap.cable_friction, self.friction_state)[1]
 
     def step(self, command) -> np.ndarray:
         """Hold motor commands (B, C) in m for DT: the rods move; returns the mean cable
-        tensions (B, C) over the step. After ``reset``."""
+        tensions (B, C) over the step (along each cable, as they bend the rod). After ``reset``."""
         sim, h = self.sim, DT / self.substeps
         follow = 1.0 - np.exp(-h / self.gap.motor_lag) if self.gap.motor_lag > 0 else 1.0
         tensions = np.zeros_like(self.motor)
         for _ in range(self.substeps):
             self.motor = self.motor + follow * (command - self.motor)
-            tension = self.stiffness * np.maximum(self._cable_stretch(self.motor, self.q + 0.5 * h * self.qd), 0.0)
+            if self.gap.cable_friction > 0:
+                tension = self._rubbing_tension(self.q + 0.5 * h * self.qd)
+            else:  # frictionless cables: the arithmetic of the plant before friction, bit for bit
+                tension = self.stiffness * np.maximum(self._cable_stretch(self.motor, self.q + 0.5 * h * self.qd), 0.0)
             self.q, self.qd = (
                 x[:, -1] for x in sim.integrate(cable_actuation(tension, self.robot)[:, None], self.q, self.qd)
             )
@@ -239,6 +327,81 @@ class CablePlant:
         qs, qds = np.stack(qs, 1), np.stack(qds, 1)
         states = self.sim.tip_state(qs.reshape(-1, self.sim.nq), qds.reshape(-1, self.sim.nq)).reshape(B, T + 1, 6)
         return dict(states=states, q=qs, tensions=tensions)
+
+
+@dataclass(frozen=True)
+class HysteresisLoop:
+    """The plant's tip against a slowly cycled input (``hysteresis_loop``): what friction leaves
+    of the cycle once the effects of its rate are removed."""
+
+    u: np.ndarray  # (K,) N, the inputs where the branches are compared
+    gap: np.ndarray  # (K,) down minus up branch, lateral tip, rate effects removed, fraction of the reach
+    width: float  # the largest |gap|: the loop's width as a fraction of the reach
+    reach: float  # m, half the tip's lateral span over the slower cycle
+    down: np.ndarray  # (T, 2): u (N) and lateral tip (m) along the slower cycle's down branch
+    up: np.ndarray  # (T, 2): the same along its up branch
+
+
+def _branch_run(period: float, sign: float, n_steps: int, u_max: float) -> np.ndarray:
+    """One input (T,) N: from 0 to sign u_max over period / 2, then to -sign u_max over the next
+    half (the branch), each a half cosine (no jump in rate, so the rod is barely set ringing),
+    then held."""
+    t = np.arange(n_steps) * DT
+    half = period / 2
+    approach = sign * u_max * (1 - np.cos(np.pi * np.minimum(t, half) / half)) / 2
+    branch = sign * u_max * np.cos(np.pi * np.clip(t - half, 0.0, half) / half)
+    return np.where(t < half, approach, branch)
+
+
+@functools.lru_cache(maxsize=4)
+def _loop_commands(robot: Robot, gravity: str, period: float, u_max: float):
+    """The four runs of ``hysteresis_loop``, u (4, T, 2) and motor commands (4, T, C), kept for
+    the next gap (they depend on the model rod only, and cost as much as a replay)."""
+    n_steps = int(round(period / DT)) + 1
+    u = np.zeros((4, n_steps, 2))  # (4, T, 2): rods (period / 2: down, up; period: down, up)
+    for rod, (cycle, sign) in enumerate([(period / 2, 1.0), (period / 2, -1.0), (period, 1.0), (period, -1.0)]):
+        u[rod, :, 0] = _branch_run(cycle, sign, n_steps, u_max)
+    commands = cable_commands(u, Simulator(robot, gravity))
+    u.setflags(write=False)
+    commands.setflags(write=False)
+    return u, commands
+
+
+def hysteresis_loop(
+    gap: RealityGap,
+    *,
+    robot: Robot = HW_ROBOT,
+    gravity: str = "vertical",
+    period: float = LOOP_PERIOD,
+    u_max: float = U_MAX,
+) -> HysteresisLoop:
+    """The loop the plant across ``gap`` draws when u1 is cycled over [-u_max, u_max] (u2 = 0),
+    made into motor commands through the model rod (``cable_commands``), the tip's lateral y
+    against u1: its width is the largest gap between the down and the up branch at the same u1,
+    as a fraction of the reach (half the lateral span).
+
+    Four rods in one batch: a down branch (0 -> u_max -> -u_max) and an up branch (0 -> -u_max
+    -> u_max) at cycle periods ``period`` and ``period`` / 2. A lag tau (Kelvin-Voigt creep, motor
+    lag) puts the branches tau du/dt apart, which halves when the period doubles, so the
+    gap 2 g(period) - g(period / 2) keeps only what does not depend on the rate: the friction's.
+    What is left of the rate, the rod's ringing, is about 0.1 % of the reach at 20 s."""
+    if robot.n_inputs != 2:
+        raise ValueError(f"hysteresis_loop cycles u1 of a two-input rod; {robot.name!r} has {robot.n_inputs} inputs")
+    if not (np.isfinite(period) and period >= 4 * DT and np.isfinite(u_max) and u_max > 0):
+        raise ValueError(f"need a period of at least {4 * DT} s and u_max > 0 N; got {period!r} s, {u_max!r} N")
+    u, commands = _loop_commands(robot, gravity, float(period), float(u_max))
+    lateral = CablePlant(robot, gravity, gap).replay(commands)["states"][:, 1:, 1]  # (4, T), after each u_t
+    grid = np.linspace(-u_max, u_max, 41)[1:-1]  # (K,) inside the turns, where the branches meet
+    gaps, branches = [], []
+    for first, cycle in ((0, period / 2), (2, period)):
+        start, end = int(round(cycle / 2 / DT)), int(round(cycle / DT)) + 1
+        down = np.stack([u[first, start:end, 0], lateral[first, start:end]], -1)  # (T', 2), u falling
+        up = np.stack([u[first + 1, start:end, 0], lateral[first + 1, start:end]], -1)  # (T', 2), u rising
+        gaps.append(np.interp(grid, *down[::-1].T) - np.interp(grid, *up.T))
+        branches = [down, up]
+    reach = float(np.ptp(lateral[2:])) / 2
+    quasi_static = (2 * gaps[1] - gaps[0]) / reach  # (K,)
+    return HysteresisLoop(grid, quasi_static, float(np.abs(quasi_static).max()), reach, *branches)
 
 
 def twin_camera(sim: Simulator, gap: RealityGap = NO_GAP) -> vision.Camera:
