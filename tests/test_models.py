@@ -137,6 +137,22 @@ def test_evaluate_scores_a_perfect_plan_as_perfect():
     np.testing.assert_allclose(results.input_energy, [np.sum(r.u_true**2) * DT for r in references])
 
 
+def test_evaluate_many_runs_one_flow_at_several_step_counts_as_separate_runs_would(dataset, trained):
+    sim = Simulator(SIM_ROBOT)
+    references = data.random_references(sim, n=2, seconds=1.0)
+    flow = trained("rf")[0]
+    variants = [control.Controller(flow, f"rf N={n}") for n in (1, 4)]
+    together, _ = control.evaluate_many(
+        variants, references, sim, options_of={"rf N=1": dict(steps=1), "rf N=4": dict(steps=4)}
+    )
+    for controller, n in zip(variants, (1, 4)):
+        alone, _ = control.evaluate(controller, references, sim, steps=n)
+        np.testing.assert_allclose(together[together.model == controller.name].rmse_mm, alone.rmse_mm, rtol=1e-12)
+    assert together.groupby("model").rmse_mm.mean().nunique() == 2  # the step count matters
+    with pytest.raises(ValueError, match=r"options_of names controllers that are not evaluated: \['rf N=2'\]"):
+        control.evaluate_many(variants, references, sim, options_of={"rf N=2": dict(steps=2)})
+
+
 def test_plan_refuses_references_outside_the_training_workspace(dataset, trained):
     controller = control.Controller(trained("mlp")[0], "mlp")
     reference = dataset.states[0]

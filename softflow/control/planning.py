@@ -369,15 +369,29 @@ def evaluate(controller, references, sim: Simulator, u_limit: float = U_MAX, *, 
     return results, runs[controller.name]
 
 
-def evaluate_many(controllers, references, sim: Simulator, u_limit: float = U_MAX, *, start_q=None, **plan_options):
+def evaluate_many(
+    controllers,
+    references,
+    sim: Simulator,
+    u_limit: float = U_MAX,
+    *,
+    start_q=None,
+    options_of: dict | None = None,
+    **plan_options,
+):
     """``evaluate`` for several controllers at once: every plan of every controller runs in
     one batched rollout, several times faster than one rollout per controller (the simulator
-    is batch-invariant, so the numbers are the same). Returns one DataFrame (a row per
-    controller and reference) and {controller name: {reference name: dict(u, states)}}."""
+    is batch-invariant, so the numbers are the same). ``options_of`` {controller name: plan
+    options} replaces ``plan_options`` for the controllers it names (e.g. one flow at several
+    Euler step counts). Returns one DataFrame (a row per controller and reference) and
+    {controller name: {reference name: dict(u, states)}}."""
     names = [c.name for c in controllers]
     if len(set(names)) != len(names):
         raise ValueError(f"controllers must have distinct names; got {names}")
-    planned = [plan_all(c, references, u_limit, **plan_options)[0] for c in controllers]
+    options_of = options_of or {}
+    if unknown := sorted(set(options_of) - set(names)):
+        raise ValueError(f"options_of names controllers that are not evaluated: {unknown}; they are {names}")
+    planned = [plan_all(c, references, u_limit, **options_of.get(c.name, plan_options))[0] for c in controllers]
     _, padded = pad_plans([u for plans in planned for u in plans])
     start = None if start_q is None else np.tile(np.asarray(start_q, float), (len(controllers), 1))
     achieved = sim.rollout(padded, start_q=start)
