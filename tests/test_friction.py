@@ -133,7 +133,7 @@ def test_a_sliding_cable_obeys_the_capstan_bound():
     # sliding, not sticking: cable 1 slid 17 sliding lengths (its stretch and its path), cables
     # 2 and 3 only their path's 7, so their state is 2 e^-7 short of -1 (a ratio 2e-4 lower)
     np.testing.assert_allclose(plant.friction_state[0], [1, -1, -1], atol=3e-3)
-    tensions = plant.cable_tensions()
+    tensions = plant.tensions()
     ratio = tensions["anchored"][0] / tensions["base"][0]
     np.testing.assert_allclose(ratio, np.exp([-mu * theta, mu * theta, mu * theta]), rtol=3e-4)
     assert ratio[0] == pytest.approx(np.exp(-mu * theta), rel=1e-5)

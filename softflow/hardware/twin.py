@@ -272,7 +272,7 @@ class CablePlant:
         the norm of its anchor group's pair, exact for an arc, a lower bound for other shapes."""
         return np.hypot(bend_angles[:, 0::2], bend_angles[:, 1::2])[:, self.cable_group]
 
-    def cable_tensions(self) -> dict:
+    def tensions(self) -> dict:
         """Tensions (B, C) now at the motor end (``base``), at the anchor (``anchored``) and
         the mean along each cable (``mean``, what bends the rod). After ``reset``."""
         base = self.stiffness * np.maximum(self._cable_stretch(self.motor, self.q), 0.0)
@@ -384,7 +384,7 @@ def hysteresis_loop(
     -> u_max) at cycle periods ``period`` and ``period`` / 2. A lag tau (Kelvin-Voigt creep, motor
     lag) puts the branches tau du/dt apart, which halves when the period doubles, so the
     gap 2 g(period) - g(period / 2) keeps only what does not depend on the rate: the friction's.
-    What is left of the rate, the rod's ringing, is about 0.1 % of the reach at 20 s."""
+    What is left of the rate, the rod's ringing, is 0.1-0.2 % of the reach at 20 s."""
     if robot.n_inputs != 2:
         raise ValueError(f"hysteresis_loop cycles u1 of a two-input rod; {robot.name!r} has {robot.n_inputs} inputs")
     if not (np.isfinite(period) and period >= 4 * DT and np.isfinite(u_max) and u_max > 0):
