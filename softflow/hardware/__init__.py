@@ -33,6 +33,7 @@ EXPORTS = {
     ],
     "commands": ["write_commands", "read_commands", "write_marker_csv", "load_recording"],
     "experiment": ["LOOPS", "run_twin"],
+    "recorder": ["record_runs", "input_columns", "motor_columns"],
 }
 SUBMODULES = ["vision", "identification", "calibration"]
 __getattr__, __dir__, __all__ = facade(__name__, EXPORTS, SUBMODULES)
