@@ -82,6 +82,7 @@ $(ELASTICA): benchmarks/requirements-elastica.txt
 
 bench: $(STAMP) $(ELASTICA)  # PyElastica is a benchmark-only dependency, in its own venv
 	$(PY) benchmarks/bench_simulator.py
+	$(PY) benchmarks/bench_two_segment.py
 	$(PY) benchmarks/bench_planning.py --profile $(BENCH_PROFILE)
 	$(PY) benchmarks/bench_training.py --profile $(BENCH_PROFILE)
 	$(PY) benchmarks/bench_sweep.py

@@ -4,10 +4,9 @@
    default accuracy: wall time and episodes/s;
 2. the same rod and input in PyElastica (benchmarks/pyelastica_rod.py, run in its own
    venv .venv-elastica): wall time per simulated second, our speed-up (one episode, and
-   per episode in a batch of 256), and the tip-trajectory difference of a 2 s response;
-3. the two-segment rod beside the one-segment rod on the same batch (default 256 episodes
-   x 5 s of polynomial excitation, the one-segment rod driven by the tip pair): wall times
-   and their ratio, each the faster of two alternating runs.
+   per episode in a batch of 256), and the tip-trajectory difference of a 2 s response.
+
+The two-segment rod has its own script, bench_two_segment.py.
 
 Writes figures/bench/simulator.csv and prints a summary.
 """
@@ -15,6 +14,7 @@ Writes figures/bench/simulator.csv and prints a summary.
 from __future__ import annotations
 
 import argparse
+import pickle
 import platform
 import subprocess
 import sys
@@ -27,7 +27,7 @@ from results_file import write_results
 
 from softflow.data.excitation import polynomial_excitation
 from softflow.rod.dynamics import Simulator
-from softflow.rod.robots import DT, SIM_ROBOT, TWO_SEGMENT_ROD
+from softflow.rod.robots import DT, SIM_ROBOT
 
 HERE = Path(__file__).resolve().parent
 ELASTICA_PYTHON = HERE.parent / ".venv-elastica" / "bin" / "python"
@@ -39,47 +39,26 @@ def smooth_3d_input(seconds: float = 2.0) -> np.ndarray:
     return np.stack([2 * np.sin(2 * np.pi * 0.8 * t), 1.5 * (1 - np.cos(2 * np.pi * 0.5 * t))], -1)
 
 
-def run_pyelastica(u: np.ndarray) -> dict:
-    """Tip trajectory and wall time of PyElastica for one episode, in its own interpreter."""
+def run_pyelastica(robot, inputs, **options) -> list[dict]:
+    """PyElastica's trajectories of ``robot`` for each input (T, m) of ``inputs``, in its own
+    interpreter: ``pyelastica_rod.simulate(robot, u, **options)`` each (tip, disks, wall_seconds)."""
     with tempfile.TemporaryDirectory() as tmp:
-        np.save(Path(tmp) / "u.npy", u)
+        job = Path(tmp) / "job.pkl"
+        job.write_bytes(pickle.dumps((robot, [np.asarray(u, dtype=float) for u in inputs], options)))
         script = (
-            f"import sys, numpy as np; sys.path[:0] = [{str(HERE)!r}, {str(HERE.parent)!r}]; import pyelastica_rod;"
-            f"from softflow.rod.robots import SIM_ROBOT;"
-            f"r = pyelastica_rod.simulate(SIM_ROBOT, np.load({str(Path(tmp) / 'u.npy')!r}));"
-            f"np.save({str(Path(tmp) / 'tip.npy')!r}, r['tip']); print(r['wall_seconds'])"
+            f"import pickle, sys; sys.path[:0] = [{str(HERE)!r}, {str(HERE.parent)!r}]; import pyelastica_rod;"
+            f"from pathlib import Path; job = Path({str(job)!r});"
+            f"robot, inputs, options = pickle.loads(job.read_bytes());"
+            f"job.write_bytes(pickle.dumps([pyelastica_rod.simulate(robot, u, **options) for u in inputs]))"
         )
-        out = subprocess.run([str(ELASTICA_PYTHON), "-c", script], capture_output=True, text=True, check=True)
-        return dict(tip=np.load(Path(tmp) / "tip.npy"), wall_seconds=float(out.stdout.strip().splitlines()[-1]))
-
-
-def two_segment_side_by_side(episodes: int, seconds: float) -> dict:
-    """Wall time (s) of a batched rollout of the two-segment rod and of the one-segment rod
-    on the same episodes: u (B, T, 4) for the former, its tip pair u[..., 2:] for the latter."""
-    rng = np.random.default_rng(1)
-    n_steps = int(round(seconds / DT))
-    u = np.concatenate([polynomial_excitation(episodes, n_steps, rng) for _ in range(2)], -1)  # (B, T, 4)
-    rods = {"one_segment": (Simulator(SIM_ROBOT), u[..., 2:]), "two_segment": (Simulator(TWO_SEGMENT_ROD), u)}
-    walls = {name: np.inf for name in rods}
-    for _ in range(2):  # alternate, keep the faster run of each: load on a shared machine hits both alike
-        for name, (sim, inputs) in rods.items():
-            start = time.perf_counter()
-            sim.rollout(inputs)
-            walls[name] = min(walls[name], time.perf_counter() - start)
-    return dict(
-        episodes=episodes,
-        seconds_each=seconds,
-        one_segment_wall_seconds=walls["one_segment"],
-        two_segment_wall_seconds=walls["two_segment"],
-        ratio=walls["two_segment"] / walls["one_segment"],
-    )
+        subprocess.run([str(ELASTICA_PYTHON), "-c", script], check=True)
+        return pickle.loads(job.read_bytes())
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--episodes", type=int, default=3000)
     parser.add_argument("--seconds", type=float, default=5.0)
-    parser.add_argument("--two-segment-episodes", type=int, default=256)
     args = parser.parse_args()
     results = dict(machine=f"{platform.processor() or platform.machine()}, {platform.node()}", cores=2)
 
@@ -106,7 +85,7 @@ def main():
     if not ELASTICA_PYTHON.exists():
         print(f"PyElastica comparison skipped: {ELASTICA_PYTHON} missing (see benchmarks/README.md)")
     else:
-        elastica = run_pyelastica(u2)
+        elastica = run_pyelastica(SIM_ROBOT, [u2])[0]
         difference = np.linalg.norm(elastica["tip"] - ours, axis=1)
         results["pyelastica"] = dict(
             s_per_simulated_s=elastica["wall_seconds"] / simulated,
@@ -127,11 +106,6 @@ def main():
             f"({e['max_tip_difference_percent_L']:.2f} % of L), "
             f"RMS {e['rms_tip_difference_mm']:.2f} mm"
         )
-    results["two_segment"] = side = two_segment_side_by_side(args.two_segment_episodes, args.seconds)
-    print(
-        f"two-segment rod: {side['two_segment_wall_seconds']:.1f} s against {side['one_segment_wall_seconds']:.1f} s "
-        f"for the one-segment rod on the same {side['episodes']} episodes ({side['ratio']:.2f}x)"
-    )
     write_results("simulator", results)
     return 0
 

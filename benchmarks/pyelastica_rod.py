@@ -2,7 +2,8 @@
 
 ``simulate`` runs one episode of the same rod and input in PyElastica, an explicit,
 discrete, extensible and shearable Cosserat-rod code, so that a benchmark can report
-our speed-up and the tip-trajectory difference. It needs the separate venv of
+our speed-up and the tip-trajectory difference (and that of every segment's end disk,
+for a rod of several segments such as ``TWO_SEGMENT_ROD``). It needs the separate venv of
 benchmarks/README.md (PyElastica pulls numba). ``python benchmarks/pyelastica_rod.py``
 runs the validation against our simulator.
 
@@ -29,6 +30,21 @@ How the model is matched:
   also the distributed twisting couple m x kappa that an internal body-fixed moment
   exerts once the rod bends out of the cables' plane; a tip couple alone misses it
   (19 mm off for the 3-D input).
+* Segments (``robot.cable_anchors``): a cable group anchored at s_g loads [0, s_g] only,
+  as our cable map, so m is piecewise constant: at arc length s the sum of
+  r (-u_z, u_y) over the groups whose disk lies beyond s. PyElastica's curvature lives on
+  its n - 1 interior nodes, node k standing for [k l, (k + 1) l] from the clamp (l the
+  element length); each gets the rest curvature of m averaged over that arc, so the
+  rest curvature integrates exactly across a disk (with the half-element shift no
+  element count puts TWO_SEGMENT_ROD's middle disk on such a boundary: at 25 elements it
+  lies a quarter into node 12's arc). Clamp, torsion, damping and time step as for one
+  segment; one segment gets the same numbers as before. A disk is read on the
+  centreline between the two nodes around it, linearly (the tip is the last node).
+  Statics of three S-shaped inputs (u1, u3 of opposite signs, settled): tip 0.015-0.053
+  mm from the piecewise arcs, middle disk 0.011-0.029 mm; at 50 elements the worst
+  (u = (-3, 1, 2, 1)) drops to 0.013 and 0.018 mm, O(1/n^2) as for one segment. On the
+  2 s response of bench_two_segment.py, 50 elements with 2.5 us move the tip by 0.22 mm
+  and the middle disk by 0.15 mm.
 * Damping: ours is Kelvin-Voigt, couple E I kappa + eta I kappa_dot, so the modal
   ratios are zeta_n = eta omega_n / (2 E): 0.112, 0.70, 1.97 for SIM_ROBOT (Euler-
   Bernoulli modes 1.43, 8.95, 25.1 Hz). PyElastica has no such damper; its
@@ -70,7 +86,7 @@ class _BendingLaw:
     bend matrix and rest curvature; ``after_step`` advances the dashpot strain exactly
     over one time step (kappa held), ``cable_moment`` sets m for the next sample."""
 
-    def __init__(self, rod, robot, time_step: float):
+    def __init__(self, rod, robot, time_step: float, element: float):
         rod.bend_matrix[:2, :2] *= 1 + KV_STIFFNESS_RATIO
         rod.bend_matrix[2, 2] *= TORSION_FACTOR
         self.rod = rod
@@ -81,13 +97,21 @@ class _BendingLaw:
         self.decay = math.exp(-relaxation)  # no damping: the branch follows kappa and adds nothing
         self.viscous_kappa = np.zeros_like(self.stiffness)
         self.moment = np.zeros((2, 1))
+        # Share of node k's Voronoi domain [k l, (k+1) l] (arc length from the clamp) that a
+        # cable group anchored at s_g loads: 1 before its disk, 0 beyond, a fraction across it.
+        starts = element * np.arange(self.stiffness.shape[1])  # (n-1,)
+        anchors = np.array(sorted(set(robot.anchors)))  # (G,), base outwards
+        self.loaded = np.clip((anchors[None] - starts[:, None]) / element, 0.0, 1.0)  # (n-1, G)
+        self.cable_radius = robot.cable_radius
 
     def _set_rest_kappa(self):
         share = KV_STIFFNESS_RATIO / (1 + KV_STIFFNESS_RATIO)
         self.rod.rest_kappa[:2] = share * self.viscous_kappa + self.moment / self.stiffness
 
-    def cable_moment(self, u, cable_radius: float):
-        self.moment = cable_radius * np.array([[-u[1]], [u[0]]])
+    def cable_moment(self, u):
+        """u (m,): one pair (u_y, u_z) per cable group, base outwards."""
+        pairs = self.loaded @ u.reshape(-1, 2)  # (n-1, 2): the groups whose disk lies beyond each node
+        self.moment = self.cable_radius * np.stack([-pairs[:, 1], pairs[:, 0]])  # (2, n-1) on d1, d2
         self._set_rest_kappa()
 
     def after_step(self):
@@ -95,22 +119,33 @@ class _BendingLaw:
         self._set_rest_kappa()
 
 
+def _disk_nodes(robot, element: float) -> tuple[np.ndarray, np.ndarray]:
+    """The node before each segment's end disk and the disk's fraction of the way to the next
+    (node k lies at arc length (k - 1/2) l from the clamp, so the tip is node n, fraction 0)."""
+    place = np.array(robot.segment_ends) / element + 0.5
+    nodes = np.minimum(np.floor(place + 1e-9).astype(int), round(robot.length / element + 0.5))
+    return nodes, place - nodes
+
+
 def simulate(
     robot, u, dt: float = 0.01, duration: float | None = None, n_elements: int = 25, time_step: float = 5e-6
 ) -> dict:
-    """Tip trajectory of one episode in PyElastica, from rest.
+    """Tip and disk trajectories of one episode in PyElastica, from rest.
 
-    u: (T, 2) differential cable tensions (N), each held for ``dt`` s (the last one
-    beyond T dt when ``duration`` is longer). ``time_step`` must divide ``dt``; the
-    default (25 elements, 5 us) is converged and within the explicit stability limit,
-    which the stiff viscous branch and torsion set (see benchmarks/README.md).
-    Returns times (S+1,), tip (S+1, 3) positions in m at every sample and wall_seconds,
-    the time spent integrating after the first step (setup and numba's compilation,
-    which a fresh venv pays on that step, excluded).
+    u: (T, m) differential cable tensions (N), one pair per cable group as in our
+    simulator (m = robot.n_inputs), each held for ``dt`` s (the last one beyond T dt when
+    ``duration`` is longer). ``time_step`` must divide ``dt``; the default (25 elements,
+    5 us) is converged and within the explicit stability limit, which the stiff viscous
+    branch and torsion set (see benchmarks/README.md).
+    Returns times (S+1,), tip (S+1, 3) and disks (S+1, segments, 3) (each segment's end,
+    the tip last) positions in m at every sample, and wall_seconds, the time spent
+    integrating after the first step (setup and numba's compilation, which a fresh venv
+    pays on that step, excluded).
     """
     u = np.asarray(u, dtype=float)
-    if u.ndim != 2 or u.shape[1] != 2 or len(u) == 0 or not np.isfinite(u).all():
-        raise ValueError(f"u must be a finite (T, 2) array; got shape {u.shape}")
+    m = robot.n_inputs
+    if u.ndim != 2 or u.shape[1] != m or len(u) == 0 or not np.isfinite(u).all():
+        raise ValueError(f"u must be a finite (T, {m}) array; got shape {u.shape}")
     samples = len(u) if duration is None else round(duration / dt)
     if samples < 1:
         raise ValueError(f"duration must cover at least one sample of {dt} s; got {duration!r}")
@@ -131,27 +166,34 @@ def simulate(
         youngs_modulus=robot.youngs_modulus,
         shear_modulus=robot.youngs_modulus / 3,
     )
-    law = _BendingLaw(rod, robot, h)
+    law = _BendingLaw(rod, robot, h, element)
     system = _System()
     system.append(rod)
     system.constrain(rod).using(ea.OneEndFixedBC, constrained_position_idx=(0,), constrained_director_idx=(0,))
     system.finalize()
 
+    nodes, fraction = _disk_nodes(robot, element)
+    after = np.minimum(nodes + 1, n_elements)
+
+    def disks():
+        x = rod.position_collection.T  # (n+1, 3)
+        return x[nodes] + fraction[:, None] * (x[after] - x[nodes])
+
     stepper, t = ea.PositionVerlet(), 0.0
-    tip = np.empty((samples + 1, 3))
-    tip[0] = rod.position_collection[:, -1]
+    disk = np.empty((samples + 1, len(nodes), 3))
+    disk[0] = disks()
     start = None
     for k in range(samples):
-        law.cable_moment(u[min(k, len(u) - 1)], robot.cable_radius)
+        law.cable_moment(u[min(k, len(u) - 1)])
         for _ in range(steps):
             t = stepper.step(system, t, h)
             law.after_step()
             start = start or time.perf_counter()  # after the first step, which compiles numba's kernels
-        tip[k + 1] = rod.position_collection[:, -1]
+        disk[k + 1] = disks()
     wall = time.perf_counter() - start
-    if not np.isfinite(tip).all():
+    if not np.isfinite(disk).all():
         raise RuntimeError("PyElastica diverged: reduce time_step")
-    return dict(times=dt * np.arange(samples + 1), tip=tip, wall_seconds=wall)
+    return dict(times=dt * np.arange(samples + 1), tip=disk[:, -1].copy(), disks=disk, wall_seconds=wall)
 
 
 def main():
