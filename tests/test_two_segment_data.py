@@ -172,6 +172,20 @@ def test_the_floor_learns_with_four_inputs(sim):
     assert history[0, 0] > 20.0 and history.min() < history[0, 0] / 10  # measured 53.1 -> 3.3 mm
 
 
+def test_the_floor_start_runs_linear_over_a_step_whose_least_norm_fit_does_not_converge(sim):
+    """A far lateral point of a paper random reference (Rand9) where the least-norm iteration
+    cycles: the start leaves it out and runs linear between its neighbours."""
+    states = np.zeros((21, 6))  # steps 0, 10 and 19 are fitted (every 10th and the last)
+    states[1:, :3] = sim.static_tip(np.array([[0.5, 0.0, 0.5, 0.0]]))
+    states[20, :3] = sim.static_tip(np.array([[0.0, 0.5, 0.0, 0.5]]))[0]
+    states[11, :3] = [0.1082, 0.2355, 0.2184]  # no fit in 50 steps (nor in 400)
+    reference = data.Reference("far", "random", states, np.ones(21, bool))
+    (start,), (inverse,) = floor.least_norm_start(sim, [reference])
+    assert np.isfinite(start).all() and np.isfinite(inverse).all()
+    np.testing.assert_allclose(start[10], start[0] + (start[19] - start[0]) * 10 / 19, rtol=1e-12)
+    np.testing.assert_allclose(sim.static_tip(start[[0, 19]])[:, 1:], states[[1, 20], 1:3], atol=1e-9)
+
+
 def test_a_two_segment_model_loads_plans_and_steps(tiny, sim, tmp_path, monkeypatch):
     """load_controller finds a model trained on the rod's data by its profile's identity; a model of
     the tip and the middle disk plans a tip+disk reference and refuses one in millimetres."""

@@ -102,21 +102,43 @@ def least_norm_start(sim: Simulator, references):
     floor's start and learning direction on a rod with more inputs than two, which has no static
     table. Lateral, because a hanging rod's depth does not change to first order at rest, where
     a least-norm fit of all three coordinates is singular; damped, because the plain inverse of
-    that nearly singular depth row throws the plan into the actuator limits."""
+    that nearly singular depth row throws the plan into the actuator limits. A step whose fit
+    does not converge (far out, where the least-norm iteration can cycle) is left out, and the
+    start runs linear between its neighbours, as between every ``COARSE``-th step."""
     steps = [np.unique(np.append(np.arange(0, r.n_steps, COARSE), r.n_steps - 1)) for r in references]
     tips = np.concatenate([r.states[1:, :3][k] for r, k in zip(references, steps)])  # (K, 3)
-    fitted = []
-    for begin in range(0, len(tips), _STATIC_CHUNK):
-        p = tips[begin : begin + _STATIC_CHUNK]
-        u, _, J = statics.fit_static(sim, p, [1, 2], statics.arc_actuation(sim.robot, p), u_limit=sim.u_bound)
-        damping = (DAMPING * np.linalg.norm(J, ord=2, axis=(1, 2)))[:, None, None] ** 2 * np.eye(3)
-        fitted.append((u, J.transpose(0, 2, 1) @ np.linalg.inv(J @ J.transpose(0, 2, 1) + damping)))  # (b, m, 3)
-    ends = np.cumsum([len(k) for k in steps])[:-1]
-    u, inverse = (np.split(np.concatenate(part), ends) for part in zip(*fitted))
-    return (
-        [_between(k, values, r.n_steps) for r, k, values in zip(references, steps, u)],
-        [_between(k, values, r.n_steps) for r, k, values in zip(references, steps, inverse)],
+    u, J, fitted = map(
+        np.concatenate,
+        zip(*(_lateral_fit(sim, tips[i : i + _STATIC_CHUNK]) for i in range(0, len(tips), _STATIC_CHUNK))),
     )
+    inverse = np.full(J.transpose(0, 2, 1).shape, np.nan)  # (K, m, 3)
+    J = J[fitted]
+    damping = (DAMPING * np.linalg.norm(J, ord=2, axis=(1, 2)))[:, None, None] ** 2 * np.eye(3)
+    inverse[fitted] = J.transpose(0, 2, 1) @ np.linalg.inv(J @ J.transpose(0, 2, 1) + damping)
+    ends = np.cumsum([len(k) for k in steps])[:-1]
+    starts, inverses = [], []
+    for r, k, ok, values, inverse_k in zip(references, steps, *(np.split(a, ends) for a in (fitted, u, inverse))):
+        if not ok.any():
+            raise ValueError(
+                f"reference {r.name!r}: no least-norm equilibrium reaches any of its tip's lateral positions"
+            )
+        starts.append(_between(k[ok], values[ok], r.n_steps))
+        inverses.append(_between(k[ok], inverse_k[ok], r.n_steps))
+    return starts, inverses
+
+
+def _lateral_fit(sim: Simulator, p):
+    """The least-norm u (b, m) whose equilibrium tip has p's (y, z), d p / d u there (b, 3, m) and
+    which points converged (b,): fitted together, a batch that fails is halved until the points
+    that do not converge stand alone (their u and J are NaN)."""
+    try:
+        u, _, J = statics.fit_static(sim, p, [1, 2], statics.arc_actuation(sim.robot, p), u_limit=sim.u_bound)
+        return u, J, np.ones(len(p), bool)
+    except (RuntimeError, np.linalg.LinAlgError):
+        if len(p) == 1:
+            return np.full((1, sim.n_inputs), np.nan), np.full((1, 3, sim.n_inputs), np.nan), np.zeros(1, bool)
+    half = len(p) // 2
+    return tuple(np.concatenate(parts) for parts in zip(_lateral_fit(sim, p[:half]), _lateral_fit(sim, p[half:])))
 
 
 def _between(known, values, n: int) -> np.ndarray:
