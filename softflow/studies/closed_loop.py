@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from dataclasses import asdict
 from pathlib import Path
 
 from softflow import data, hardware, training
@@ -129,7 +128,7 @@ def _identified_twin(sim: Simulator, gap: hardware.RealityGap, seconds: float, w
         )
 
     cached = cached_arrays(
-        cache_file(workdir, "identified", dict(simulator=sim.spec(), gap=asdict(gap), seconds=seconds)), compute
+        cache_file(workdir, "identified", dict(simulator=sim.spec(), gap=gap.parameters(), seconds=seconds)), compute
     )
     fitted = hardware.RealityGap(**{term: float(cached[term]) for term in identification.FITTED})
     return identification.Identified(fitted, float(cached["rmse_mm"]), int(cached["evaluations"]))
