@@ -110,8 +110,12 @@ def _least_norm_step(sim, J, error, u, q, rows):
     H = vectors * np.maximum(values, _HESSIAN_FLOOR)[:, None, :] @ vectors.transpose(0, 2, 1)
     null = -(N @ np.linalg.solve(H, N.transpose(0, 2, 1) @ u[..., None]))[..., 0]
     step = (pinv @ error[..., None])[..., 0] + null
-    cap = sim.u_bound / 4
-    return step * np.minimum(1.0, cap / np.maximum(np.linalg.norm(step, axis=-1), 1e-300))[:, None], null
+    return _capped(step, sim.u_bound / 4), null
+
+
+def _capped(v, cap: float):
+    """Each row of v (B, m) scaled down to norm ``cap`` where it is longer."""
+    return v * np.minimum(1.0, cap / np.maximum(np.linalg.norm(v, axis=-1), 1e-300))[:, None]
 
 
 def fit_static(sim, target, rows, u, tol=1e-10, max_iter=50, u_limit=np.inf):
@@ -160,9 +164,9 @@ def fit_holding(sim, p, index, value, u=None, tol=1e-10, max_iter=50, u_limit=np
         q, Kt = equilibrium(sim, u, q)
         tip, dp_du = _tip_jacobian(sim, q, Kt)
         J = dp_du[:, :, free]  # (B, 3, m - 1)
-        step = (np.linalg.pinv(J, rtol=_RANK_RTOL) @ (p - tip)[..., None])[..., 0]  # (B, m - 1)
-        cap = sim.u_bound / 4
-        step *= np.minimum(1.0, cap / np.maximum(np.linalg.norm(step, axis=-1), 1e-300))[:, None]
+        step = _capped(
+            (np.linalg.pinv(J, rtol=_RANK_RTOL) @ (p - tip)[..., None])[..., 0], sim.u_bound / 4
+        )  # (B, m - 1)
         u[:, free] += step
         if np.abs(step).max() < tol:
             return u, static_tip(sim, u)
@@ -185,7 +189,7 @@ def inverse_static(sim, p, tol=1e-10, max_iter=50, max_residual=None):
     if max_residual is None:
         max_residual = MAX_RESIDUAL * sim.robot.length
     u0 = arc_actuation(sim.robot, p)
-    u0 *= np.minimum(1.0, sim.u_bound / np.maximum(np.linalg.norm(u0, axis=-1), 1e-300))[:, None]
+    u0 = _capped(u0, sim.u_bound)
     try:
         u, residual = _fit_points(sim, p, u0, tol, max_iter)
     except (RuntimeError, np.linalg.LinAlgError):  # some point has no fit: find out which, one at a time
