@@ -32,7 +32,7 @@ EXPORTS = {
         "TwinRig",
     ],
     "commands": ["write_commands", "read_commands", "write_marker_csv", "load_recording"],
-    "experiment": ["LOOPS", "run_twin"],
+    "experiment": ["LOOPS", "run_twin", "run_commands"],
     "recorder": ["record_runs", "input_columns", "motor_columns"],
 }
 SUBMODULES = ["vision", "identification", "calibration"]

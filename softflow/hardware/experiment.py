@@ -1,5 +1,5 @@
 """The hardware experiment on the twin: plan, command, replay and film every reference, open
-or closed loop.
+or closed loop; or replay motor commands planned as such (a model of recorded runs).
 """
 
 from __future__ import annotations
@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from softflow.checks import check_choice
+from softflow.checks import as_real_array, check_choice
 from softflow.control.closed_loop import PI, learn_by_repetition
 from softflow.control.metrics import peak_speed, tracking_rmse
-from softflow.control.planning import plan_all
+from softflow.control.planning import pad_plans, plan_all
 from softflow.hardware.commands import write_commands
 from softflow.hardware.twin import (
     CablePlant,
@@ -79,6 +79,40 @@ def run_twin(
             for k, r in enumerate(references)
         }
     )
+    return _rows(references, runs, sim, loop, command_dir), runs
+
+
+def run_commands(
+    commands, references, sim: Simulator, gap: RealityGap, *, clipped=None, seed: int = 0, command_dir=None
+):
+    """The open-loop experiment for plans that are motor commands already (a model of recorded
+    runs trained on what the motors were sent, ``recorder.motor_columns``): ``commands[k]``
+    (T_k, C) in m for reference k, replayed from rest on the plant across ``gap`` as they are,
+    with no model rod and no calibration between (all in one batch, a shorter plan holding its
+    last command), and filmed by ``run_twin``'s open-loop camera with the same seed per
+    reference (``seed`` + k), so the two are scored alike. ``clipped``: per reference, how many
+    planned values were clipped to the recorded range (0 if None). Returns what ``run_twin``
+    returns (``u`` of a run: its commands)."""
+    commands = list(commands)
+    if len(commands) != len(references):
+        raise ValueError(f"commands must hold one (T, C) plan per reference ({len(references)}); got {len(commands)}")
+    clipped = [0] * len(references) if clipped is None else [int(c) for c in clipped]
+    if len(clipped) != len(references):
+        raise ValueError(f"clipped must give one count per reference ({len(references)}); got {len(clipped)}")
+    n_cables = sim.robot.n_cables
+    plans = [as_real_array(c, f"commands[{k}]", (None, n_cables))[0] for k, c in enumerate(commands)]  # (T_k, C) each
+    for r, plan in zip(references, plans):
+        if len(plan) != r.n_steps:
+            raise ValueError(f"commands for {r.name!r} must have one row per step of it ({r.n_steps}); got {len(plan)}")
+    _, padded = pad_plans(plans)  # (R, T_max, C)
+    runs = _replayed(references, plans, padded, sim, gap, seed)
+    for r, count in zip(references, clipped):
+        runs[r.name]["clipped"] = count
+    return _rows(references, runs, sim, "open", command_dir), runs
+
+
+def _rows(references, runs: dict, sim: Simulator, loop: str, command_dir) -> pd.DataFrame:
+    """One scored row per reference of its run (commands written to ``command_dir`` if given)."""
     rows = []
     for r in references:
         run = runs[r.name]
@@ -99,7 +133,7 @@ def run_twin(
                 repetition=run.get("repetition", 1),
             )
         )
-    return pd.DataFrame(rows), runs
+    return pd.DataFrame(rows)
 
 
 def _open_runs(controller, references, sim, gap, u_limit, seed, calibration) -> dict:
@@ -109,6 +143,13 @@ def _open_runs(controller, references, sim, gap, u_limit, seed, calibration) -> 
     else:
         padded = np.clip(calibration.actuation(padded), -u_limit, u_limit)
         plans, commands = [padded[k, : len(u)] for k, u in enumerate(plans)], calibration.commands(padded)
+    return _replayed(references, plans, commands, sim, gap, seed)
+
+
+def _replayed(references, plans, commands, sim, gap, seed) -> dict:
+    """Motor commands (R, T_max, C) in m replayed on the plant across ``gap`` in one batch and
+    each reference's run filmed (seed + k): {name: dict(u, commands, states, q, frame_times,
+    tracked, clipped, watchdog_events)}, ``u`` the reference's plan (T_k, m)."""
     plant = CablePlant(sim.robot, sim.gravity, gap)
     replayed = plant.replay(commands)
     camera = twin_camera(sim, gap)
