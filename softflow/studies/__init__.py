@@ -21,6 +21,7 @@ SUBMODULES = [
     "closed_loop",
     "twin_burst",
     "two_segment",
+    "recorded",
     "smoke",
 ]
 __getattr__, __dir__, __all__ = facade(__name__, EXPORTS, SUBMODULES)

@@ -31,6 +31,11 @@ two_segment: an inverse that is many-valued by construction, fixed before any pa
     and MLP, RF and RF-FWD on its tip and middle disk, 3 seeds at 20 000 steps, plus the ILC
     floor; scored on its shapes, 24 random references and three 3-D paths, per step on u and on
     the tip the predicted u reaches in one step of the true simulator.
+recorded: models trained on nothing but recorded runs of the twin of the hardware rod, fixed
+    before any paper cell ran: MLP, LSTM, Transformer, RF and RF-FWD on 60 minutes of runs under
+    cable friction, MLP and RF on its first 5 and 15 minutes and on 60 minutes without friction,
+    3 seeds at 20 000 steps, their plans motor commands replayed on the plant as they are;
+    against the shipped RF-FWD open, open-calibrated and closed-ilc-calibrated under each gap.
 """
 
 from __future__ import annotations
@@ -42,6 +47,7 @@ from softflow.studies import (
     design,
     fwd_lambda,
     protocol,
+    recorded,
     smoke,
     table1,
     twin_burst,
@@ -60,4 +66,5 @@ STUDIES = {
     "fwd_lambda": Study(fwd_lambda.cells, fwd_lambda.run, fwd_lambda.models),
     "design": Study(design.cells, design.run, design.models),
     "two_segment": Study(two_segment.cells, two_segment.run, two_segment.models),
+    "recorded": Study(recorded.cells, recorded.run, recorded.models),
 }
