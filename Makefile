@@ -67,7 +67,7 @@ reproduce: $(STAMP)
 
 # Every cell of the studies, recomputed (not read from figures/sweeps/) and cached in
 # data/sweeps/, so an interrupted run resumes; SCHEDULER_FILE=s.json runs them on your cluster.
-STUDIES := table1 protocol data_size ambiguity fwd_lambda design closed_loop twin_burst
+STUDIES := table1 protocol data_size ambiguity fwd_lambda design closed_loop twin_burst recorded
 study: $(STAMP)
 	for s in $(STUDIES); do \
 		$(PY) -m softflow sweep $$s --profile $(PROFILE) --recompute $(if $(SCHEDULER_FILE),--scheduler-file $(SCHEDULER_FILE)) || exit 1; \
