@@ -141,25 +141,26 @@ def test_a_sliding_cable_obeys_the_capstan_bound():
 
 @pytest.fixture(scope="module")
 def loops():
-    """hysteresis_loop of the vertical twin for friction coefficients 0 (TYPICAL_GAP), 0.05,
-    0.15 (FRICTION_GAP) and 0.3, the rest of the gap typical: about a minute each."""
+    """hysteresis_loop of the vertical twin for friction coefficients 0 (TYPICAL_GAP), 0.15
+    (FRICTION_GAP) and 0.3, the rest of the gap typical: about a minute each (mu = 0.05, 0.83 %
+    of the reach when measured, is in docs/assumptions.md, not here: a fourth minute)."""
     return {
         mu: hardware.hysteresis_loop(dataclasses.replace(hardware.TYPICAL_GAP, cable_friction=mu))
-        for mu in (0.0, 0.05, 0.15, 0.3)
+        for mu in (0.0, 0.15, 0.3)
     }
 
 
 def test_without_friction_there_is_no_loop(loops):
     """What is left without friction is the rod's ringing after the rate's part is removed,
-    0.16 % of the reach when measured; friction's loop is ten times wider even at mu = 0.05."""
+    0.16 % of the reach when measured; FRICTION_GAP's is more than ten times wider."""
     loop = loops[0.0]
     assert loop.reach == pytest.approx(0.084, abs=0.005)  # HW_ROBOT reaches about 84 mm at 4 N
     assert loop.width < 2.5e-3
-    assert loops[0.05].width > 2 * loop.width
+    assert loops[0.15].width > 10 * loop.width
 
 
 def test_the_loop_widens_with_friction_and_friction_gaps_is_a_few_per_cent(loops):
-    widths = [loops[mu].width for mu in (0.05, 0.15, 0.3)]
+    widths = [loops[mu].width for mu in (0.0, 0.15, 0.3)]
     assert widths[0] < widths[1] < widths[2]
     assert 0.01 < widths[1] < 0.05  # FRICTION_GAP: a few per cent of the reach
     friction = loops[0.15]
