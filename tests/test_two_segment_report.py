@@ -8,7 +8,7 @@ import pandas as pd
 import pytest
 
 from softflow.data import least_norm_lift
-from softflow.report import study_tables
+from softflow.report import page, study_tables
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import SIM_ROBOT, TWO_SEGMENT_ROD
 from softflow.rod.validation import arc_tip
@@ -92,6 +92,17 @@ def test_decision_rule_per_family_where_both_groups_have_rows(rows):
     assert differences.loc[("tip", "random"), "verdict"] == "no ranking (an interval contains 0)"
     path3d = differences.loc[("tip", "path3d")]  # one reference: no t-interval, so no ranking
     assert np.isnan(path3d.t_low) and path3d.verdict.startswith("no ranking")
+
+
+def test_the_results_paragraph_says_each_verdict_and_how_many_cells_it_rests_on(rows):
+    paragraph = page.two_segment_summary(study_tables.two_segment_differences(rows), 6, 25)
+    assert "observing the tip only, shape -1.00 mm [" in paragraph
+    assert "(RF against MLP: RF lower)" in paragraph
+    assert "random -0.33 mm [" in paragraph and "no ranking (an interval contains 0)" in paragraph
+    assert "tip and the middle disk" not in paragraph  # no RF variant there yet
+    assert paragraph.endswith("(6 of the study's 25 cells have rows).")
+    nothing = page.two_segment_summary(study_tables.two_segment_differences(rows.iloc[:0]), 0, 25)
+    assert "no observation has rows of both an RF variant and a baseline yet (0 of the study's 25" in nothing
 
 
 def test_best_against_best_keeps_its_families_and_leaves_out_one_without_both_groups(rows):

@@ -22,12 +22,15 @@ from softflow.report.study_tables import (
     row_intervals,
     size_effects,
     table_order,
+    two_segment_differences,
     verdict_counts,
 )
 from softflow.report.tables import BASELINES, LABELS, RF_FAMILY, markdown, our_table, read_result, read_sweep
 from softflow.studies import stats
 from softflow.studies.study import FLOOR
 from softflow.studies.table1 import TABLE1
+from softflow.studies.two_segment import TWO_SEGMENT
+from softflow.studies.two_segment import cells as two_segment_cells
 
 FIGURES = [
     ("Open-loop tracking, RF family (Circle, Heart, Rand2, Rand3)", "04_tracking_rf.png"),
@@ -473,6 +476,55 @@ def _change_text(change_pct: float, side: int) -> str:
     return relative(-change_pct) if side else f"{change_pct:+.0f} %, no ranking"
 
 
+OBSERVED = {"tip": "the tip only", "tip+disk": "the tip and the middle disk"}
+
+
+def two_segment_summary(differences: pd.DataFrame, computed: int, cells: int | None) -> str:
+    """One paragraph: per observation and family, best RF variant minus best baseline with its
+    interval and the rule's verdict, whichever way it comes out, and how many cells it rests on
+    (of ``cells``, the grid's, where the profile has one)."""
+    done = f"{computed} of the study's {cells} cells have rows" if cells else f"{computed} cells have rows"
+    if differences.empty:
+        return (
+            f"On the two-segment rod no observation has rows of both an RF variant and a baseline yet ({done}; "
+            "`softflow sweep two_segment --profile paper` computes the rest)."
+        )
+    parts = []
+    for observation, table in differences.groupby(level="observation", sort=False):
+        families = [
+            f"{family} {row.difference_mm:+.2f} mm [{row.low:+.2f}, {row.high:+.2f}] "
+            f"({LABELS.get(row.best_rf, row.best_rf)} against {LABELS.get(row.best_baseline, row.best_baseline)}: "
+            f"{row.verdict})"
+            for (_, family), row in table.iterrows()
+        ]
+        parts.append(f"observing {OBSERVED.get(observation, observation)}, " + "; ".join(families))
+    return (
+        "On the two-segment rod, the best RF variant minus the best baseline in tracking RMSE "
+        f"(mean [95 % bootstrap interval]), {' and, '.join(parts)} ({done})."
+    )
+
+
+def two_segment_section(profile: Profile) -> list[str]:
+    """The redundant rod (notebook 12): whether the RF family beats the best regression when four
+    inputs reach one tip, from the study's rows as far as they are computed."""
+    try:
+        rows = read_sweep(profile, "two_segment")
+    except ValueError:  # not run in this profile yet
+        rows = pd.DataFrame(columns=["key"])
+    differences = two_segment_differences(rows)
+    return [
+        "## A two-segment rod: four inputs, one tip (notebook 12)",
+        "",
+        two_segment_summary(
+            differences,
+            rows["key"].nunique(),
+            len(two_segment_cells(profile.name)) if profile.name in TWO_SEGMENT else None,
+        ),
+        "",
+        *([markdown(differences), ""] if len(differences) else []),
+    ]
+
+
 def results_page(profile: Profile, tables: dict, run_dir: Path) -> str:
     """docs/results.md: machine, commit, wall times, Tables I-IV, the paper's claims, key figures."""
     times = notebook_wall_times(run_dir)
@@ -509,6 +561,7 @@ def results_page(profile: Profile, tables: dict, run_dir: Path) -> str:
     lines += closed_loop_section(profile)
     lines += where_flows_win_section(profile)
     lines += consistency_weight_section(profile)
+    lines += two_segment_section(profile)
     lines += ["## The paper's claims, reproduced or not", "", markdown(claims(profile)), ""]
     lines += design_choices(profile)
     lines += ["## Key figures", ""]
