@@ -13,7 +13,7 @@ that floor.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -24,11 +24,10 @@ from softflow import data, training
 from softflow.checks import as_real_array
 from softflow.control.planning import Controller, evaluate
 from softflow.data.variants import VARIANTS, variant_dataset
-from softflow.profiles import get_profile
 from softflow.rod.dynamics import Simulator
 from softflow.store import cache_file, cached_arrays
 from softflow.studies.data_size import DATA_SIZE
-from softflow.studies.study import held_out_plan, trained, unnamed
+from softflow.studies.study import fixed_budget, held_out_plan, trained, unnamed
 from softflow.studies.table1 import table1_references
 
 
@@ -123,7 +122,7 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
     controller = Controller(
         model, cell["model"], robot=variant.robot, u_limit=variant.u_max, observe=variant.observe, workspace_margin=None
     )  # hidden channels shrink the training spread: measure, not refuse
-    measured = dict(_spread(dataset, workdir), **per_step_scores(controller, dataset, grid["draws"]))
+    measured = dict(cached_spread(dataset, workdir), **per_step_scores(controller, dataset, grid["draws"]))
     sim = Simulator(variant.robot)
     references = table1_references(sim, profile_name)
     plans = {"zero": {}, f"mean-of-{grid['draws']}": dict(noise="seeded", n_samples=grid["draws"])}
@@ -135,10 +134,10 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
     ]
 
 
-def _spread(dataset: data.Dataset, workdir: Path) -> dict:
-    """The conditional spread of u in the dataset's training transitions and its floor (both
-    inputs together, ``conditional_spread``), cached per dataset (a variant's cells
-    share it)."""
+def cached_spread(dataset: data.Dataset, workdir: Path) -> dict:
+    """The conditional spread of u given (x_t, x_t+1) over the dataset's training transitions
+    and its estimator floor (all inputs together, ``transition_spread``), cached in ``workdir``
+    per dataset (the cells that train on one dataset share it)."""
 
     def compute():
         measured = transition_spread(dataset.states, dataset.u, dataset.train)
@@ -175,9 +174,7 @@ def per_step_scores(controller: Controller, dataset: data.Dataset, draws: int) -
 
 
 def _budget(profile_name: str):
-    """The profile with the study's fixed budget for every model (RF-FWD's surrogate too)."""
-    train = AMBIGUITY[profile_name]["train"]
-    return replace(get_profile(profile_name), train=train, per_step_train=train)
+    return fixed_budget(profile_name, AMBIGUITY[profile_name]["train"])
 
 
 def models(cell: dict, profile_name: str) -> dict:

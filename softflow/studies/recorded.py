@@ -25,11 +25,11 @@ from softflow.hardware.identification import FITTED
 from softflow.profiles import get_profile
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import HW_ROBOT
-from softflow.store import cache_file, cached_arrays, content_key
+from softflow.store import content_key
 from softflow.studies import ambiguity
 from softflow.studies.closed_loop import CAMERA_LATENCY, LOOP_GRID, LOOP_MODES, _identified_twin, learning_options
 from softflow.studies.data_size import DATA_SIZE
-from softflow.studies.study import trained
+from softflow.studies.study import fixed_budget, trained
 
 GAPS = {"friction": hardware.FRICTION_GAP, "typical": hardware.TYPICAL_GAP}  # the cell's gap by name
 RECORDINGS, SIMULATOR = "recordings", "simulator"  # what a cell's model was trained on
@@ -129,7 +129,7 @@ def _recorded_rows(cell, profile_name, device, workdir, sim, scored) -> list[dic
         train_runs=len(dataset.train),
         val_runs=len(dataset.val),
         held_out_runs=len(held_out.test),
-        **_spread(dataset, workdir),
+        **ambiguity.cached_spread(dataset, workdir),
         **ambiguity.per_step_scores(_controller(model, cell["model"], checkpoint), held_out, grid["draws"]),
         best_val=float(checkpoint["best_val"]),
         epochs_run=int(checkpoint["epochs_run"]),
@@ -287,25 +287,8 @@ def held_out_set(files: list[Path], workdir: Path) -> data.Dataset:
     return replace(loaded, train=empty, val=empty, test=np.arange(len(loaded.u)), key=f"{loaded.key}-held-out")
 
 
-def _spread(dataset: data.Dataset, workdir: Path) -> dict:
-    """The conditional spread of the motor commands given (x_t, x_t+1) over the training
-    transitions (at most 200 000) and its estimator floor, cached per recording set (the
-    models of one gap and size share it)."""
-
-    def compute():
-        measured = ambiguity.transition_spread(dataset.states, dataset.u, dataset.train)
-        return dict(conditional_spread=measured.spread, conditional_spread_floor=measured.floor)
-
-    cached = cached_arrays(
-        cache_file(workdir, "spread", dict(dataset=dataset.key, episodes=len(dataset.train))), compute
-    )
-    return {k: float(v) for k, v in cached.items()}
-
-
 def _budget(profile_name: str):
-    """The profile with the study's fixed budget for every model (RF-FWD's surrogate too)."""
-    train = RECORDED[profile_name]["train"]
-    return replace(get_profile(profile_name), train=train, per_step_train=train)
+    return fixed_budget(profile_name, RECORDED[profile_name]["train"])
 
 
 def models(cell: dict, profile_name: str) -> dict:

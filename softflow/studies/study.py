@@ -16,7 +16,7 @@ from softflow import data
 from softflow.control import floor
 from softflow.control.planning import Controller, SaturationWarning, score
 from softflow.models.registry import model_spec, resolved_kwargs
-from softflow.profiles import Profile
+from softflow.profiles import Profile, get_profile
 from softflow.rod.dynamics import Simulator
 
 FLOOR = "ilc-floor"  # the model name of the ILC floor's rows in the studies
@@ -55,6 +55,12 @@ def trained(name: str, profile: Profile, model_kwargs: dict | None = None, seed:
         )
         for n in names
     }
+
+
+def fixed_budget(profile_name: str, train) -> Profile:
+    """The profile with one fixed training budget for every model, RF-FWD's surrogate too: the
+    studies that compare models at equal optimiser steps (ambiguity, two_segment, recorded)."""
+    return replace(get_profile(profile_name), train=train, per_step_train=train)
 
 
 def floor_rows(sim: Simulator, references, iterations: int, start_q=None):

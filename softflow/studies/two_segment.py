@@ -26,13 +26,13 @@ from softflow.data.references import (
     random_references,
     shape_reference,
 )
-from softflow.profiles import PROFILES, get_profile
+from softflow.profiles import PROFILES
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import TWO_SEGMENT_ROD
 from softflow.store import cache_file, cached_arrays
 from softflow.studies import ambiguity
 from softflow.studies.data_size import DATA_SIZE
-from softflow.studies.study import FLOOR, floor_rows, held_out_plan, trained, unnamed
+from softflow.studies.study import FLOOR, fixed_budget, floor_rows, held_out_plan, trained, unnamed
 
 GRAVITY = "vertical"
 FLOOR_OBSERVATION = "simulator"  # the floor's cell: it learns on the true simulator, it observes nothing
@@ -134,7 +134,7 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
     )
     controller = Controller(model, cell["model"], robot=TWO_SEGMENT_ROD, gravity=GRAVITY, workspace_margin=None)
     measured = dict(
-        **_spread(dataset, workdir),
+        **ambiguity.cached_spread(dataset, workdir),
         **ambiguity.per_step_scores(controller, dataset, grid["draws"]),
         **tip_steps(controller, dataset, sim, grid["draws"], _true_steps(grid, dataset, sim, workdir)),
         best_val=float(checkpoint["best_val"]),
@@ -202,25 +202,8 @@ def _true_steps(grid: dict, dataset: data.Dataset, sim: Simulator, workdir: Path
     return cached_arrays(cache_file(workdir, "true-steps", dict(dataset=stem, episodes=episodes.tolist())), compute)
 
 
-def _spread(dataset: data.Dataset, workdir: Path) -> dict:
-    """The conditional spread of u given what the model is shown, (x_t, x_t+1), over the training
-    transitions, and the estimator's floor (``ambiguity.conditional_spread``); cached per dataset
-    and observation."""
-
-    def compute():
-        measured = ambiguity.transition_spread(dataset.states, dataset.u, dataset.train)
-        return dict(conditional_spread=measured.spread, conditional_spread_floor=measured.floor)
-
-    cached = cached_arrays(
-        cache_file(workdir, "spread", dict(dataset=dataset.key, episodes=len(dataset.train))), compute
-    )
-    return {k: float(v) for k, v in cached.items()}
-
-
 def _budget(profile_name: str):
-    """The profile with the study's fixed budget for every model (RF-FWD's surrogate too)."""
-    train = TWO_SEGMENT[profile_name]["train"]
-    return replace(get_profile(profile_name), train=train, per_step_train=train)
+    return fixed_budget(profile_name, TWO_SEGMENT[profile_name]["train"])
 
 
 def models(cell: dict, profile_name: str) -> dict:
