@@ -45,7 +45,7 @@ def test_a_study_identifies_each_rig_once_and_reads_the_same_fit_back(tmp_path, 
     calls = []
     monkeypatch.setattr(identification, "identify_twin", lambda *args, **kw: calls.append(args) or fit)
     sim = Simulator(HW_ROBOT, "vertical")
-    first = studies.closed_loop._identified_twin(sim, hardware.TYPICAL_GAP, 3.0, tmp_path)
-    again = studies.closed_loop._identified_twin(sim, hardware.TYPICAL_GAP, 3.0, tmp_path)
-    other_gap = studies.closed_loop._identified_twin(sim, hardware.TYPICAL_GAP.doubled("slack"), 3.0, tmp_path)
+    first = studies.closed_loop.identified_twin(sim, hardware.TYPICAL_GAP, 3.0, tmp_path)
+    again = studies.closed_loop.identified_twin(sim, hardware.TYPICAL_GAP, 3.0, tmp_path)
+    other_gap = studies.closed_loop.identified_twin(sim, hardware.TYPICAL_GAP.doubled("slack"), 3.0, tmp_path)
     assert first == again == other_gap == fit and len(calls) == 2  # one run per gap, read back exactly

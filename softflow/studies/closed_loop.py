@@ -91,19 +91,28 @@ def twin_setup(cell: dict, profile_name: str, device: str, workdir: Path):
     sim = Simulator(HW_ROBOT, gravity)
     dataset = data.DatasetOnDemand(profile, HW_ROBOT, gravity, progress=False)  # made only to train
     model, _ = training.ensure_trained(cell["model"], profile, dataset, HW_ROBOT, gravity, device=device)
-    options, gap = dict(LOOP_MODES[cell["mode"]]), _gap(cell["gap"])
-    if "repetitions" in options:
-        options["repetitions"] = LOOP_GRID[profile_name]["repetitions"]
-    identified = {}
-    if options.pop("calibrated", False):  # an identification run on this rig first, as on a real one
-        fit = _identified_twin(sim, gap, profile.identification_seconds, workdir)
-        options["calibration"] = Calibration.identified(sim, fit)
-        identified = {f"identified_{term}": getattr(fit.gap, term) for term in identification.FITTED}
+    gap = _gap(cell["gap"])
+    options, identified = mode_options(cell["mode"], profile_name, sim, gap, workdir)
     # closed-estimate conditions the model on the measured state of a rod it sets swinging, out
     # of the training workspace within the run: measured, not refused (docs/assumptions.md)
     margin = None if options.get("condition") == "estimate" else WORKSPACE_MARGIN
     controller = Controller(model, cell["model"], robot=HW_ROBOT, gravity=gravity, workspace_margin=margin)
     return controller, sim, gap, dict(options, camera_latency=cell["latency"], dropped=cell["dropped"]), identified
+
+
+def mode_options(mode: str, profile_name: str, sim: Simulator, gap: hardware.RealityGap, workdir: Path):
+    """``run_twin``'s options of a loop mode in a profile, and the identified terms as row
+    columns (empty unless calibrated: then an identification run on this rig comes first, as on
+    a real one, cached in ``workdir``)."""
+    options = dict(LOOP_MODES[mode])
+    if "repetitions" in options:
+        options["repetitions"] = LOOP_GRID[profile_name]["repetitions"]
+    identified = {}
+    if options.pop("calibrated", False):
+        fit = identified_twin(sim, gap, get_profile(profile_name).identification_seconds, workdir)
+        options["calibration"] = Calibration.identified(sim, fit)
+        identified = {f"identified_{term}": getattr(fit.gap, term) for term in identification.FITTED}
+    return options, identified
 
 
 def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> list[dict]:
@@ -115,7 +124,7 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
     return [dict(row, **identified) for row in rows.drop(columns=["gravity", "loop"]).to_dict("records")]
 
 
-def _identified_twin(sim: Simulator, gap: hardware.RealityGap, seconds: float, workdir: Path):
+def identified_twin(sim: Simulator, gap: hardware.RealityGap, seconds: float, workdir: Path):
     """``identification.identify_twin``, cached in the sweep's workdir: the calibrated cells of
     one configuration and gap share the same identification run (deterministic, ~2 min)."""
 

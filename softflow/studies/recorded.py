@@ -20,14 +20,12 @@ from softflow.control.planning import Controller, recorded_range
 from softflow.data import recordings
 from softflow.data.references import Reference, hardware_references
 from softflow.hardware import recorder
-from softflow.hardware.calibration import Calibration
-from softflow.hardware.identification import FITTED
 from softflow.profiles import get_profile
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import HW_ROBOT
 from softflow.store import content_key
 from softflow.studies import ambiguity
-from softflow.studies.closed_loop import CAMERA_LATENCY, LOOP_GRID, LOOP_MODES, _identified_twin, learning_options
+from softflow.studies.closed_loop import CAMERA_LATENCY, learning_options, mode_options
 from softflow.studies.data_size import DATA_SIZE
 from softflow.studies.study import fixed_budget, trained
 
@@ -184,14 +182,7 @@ def _simulator_rows(cell, profile_name, device, workdir, sim, scored) -> list[di
     model, _ = training.ensure_trained(
         cell["model"], profile, dataset, HW_ROBOT, gravity, root=workdir / "models" / profile_name, device=device
     )
-    options = dict(LOOP_MODES[cell["mode"]])
-    if "repetitions" in options:
-        options["repetitions"] = LOOP_GRID[profile_name]["repetitions"]
-    identified = {}
-    if options.pop("calibrated", False):
-        fit = _identified_twin(sim, gap, profile.identification_seconds, workdir)
-        options["calibration"] = Calibration.identified(sim, fit)
-        identified = {f"identified_{term}": getattr(fit.gap, term) for term in FITTED}
+    options, identified = mode_options(cell["mode"], profile_name, sim, gap, workdir)
     controller = Controller(model, cell["model"], robot=HW_ROBOT, gravity=gravity)
     rows, _ = hardware.run_twin(
         controller, scored, sim, gap, camera_latency=cell["latency"], dropped=cell["dropped"], **options
