@@ -112,12 +112,16 @@ def test_plan_writes_the_controllers_plan(tmp_path, capsys, references_cache):
 
 def test_export_writes_notebook_06s_command_file(tmp_path, capsys, references_cache):
     """The vertical twin's circle, planned by the shipped twin model and made into motor commands
-    as docs/real_robot.md does: byte for byte the file notebook 06 committed."""
+    as docs/real_robot.md does: the file notebook 06 committed, to its last written digit."""
     out = tmp_path / "circle.csv"
     lines = run(capsys, "export", "rf-fwd", "--shape", "circle", "--out", str(out))
     assert lines[-1] == str(out)
     assert out.read_text().startswith("time_s,l1_mm,l2_mm,l3_mm\n")  # the hardware rod's three cables
-    assert out.read_text() == (REPO / "figures" / "commands" / "vertical" / "circle.csv").read_text()
+    written = pd.read_csv(out)
+    shipped = pd.read_csv(REPO / "figures" / "commands" / "vertical" / "circle.csv")
+    assert list(written.columns) == list(shipped.columns) and len(written) == len(shipped)
+    # Written to 1e-4 mm: float noise across CPUs (AVX2 vs AVX-512 sums) may flip a last digit.
+    np.testing.assert_allclose(written.to_numpy(), shipped.to_numpy(), rtol=0, atol=1.01e-4)
 
 
 def test_evaluate_prints_each_reference_and_the_family_means(capsys, monkeypatch):
