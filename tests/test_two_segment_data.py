@@ -68,7 +68,8 @@ def test_the_shipped_datasets_keep_their_keys_and_excitation(name):
 
 def test_the_one_segment_dataset_is_what_it_was(tmp_path):
     """The tiny dataset's key, arrays and states as the code before the two-segment data made them
-    (states to 1e-9: BLAS may order sums differently on another CPU)."""
+    (states to 1e-7: another CPU's SIMD kernels round the last bits differently, and the
+    excitation's rollouts amplify that to about 1e-8)."""
     made = data.load_dataset(TINY, data_dir=tmp_path, progress=False)
     assert made.key == "dataset-tiny-3a6db93fdbc406bb"
     assert sorted(np.load(tmp_path / f"{made.key}.npz").files) == ["states", "test", "train", "u", "val"]
@@ -77,7 +78,7 @@ def test_the_one_segment_dataset_is_what_it_was(tmp_path):
         made.states[:, -1].reshape(-1)[::5][:4],
         [0.33736947637754794, 0.012867743531730468, -0.5691422408743776, -0.08624714751753576],
         rtol=0,
-        atol=1e-9,
+        atol=1e-7,
     )
     u = data.sum_of_sines_excitation(24, 500, 1000, u_max=3.0, frequencies=(0.1, 1.0))  # Table I's random family
     np.testing.assert_allclose([u.sum(), np.square(u).sum()], [218.67538072928926, 48132.799201861395], rtol=1e-12)
