@@ -10,6 +10,7 @@ import pytest
 
 from softflow import control, data, training
 from softflow.control import floor
+from softflow.control.planning import evaluate_many
 from softflow.data import dataset as dataset_module
 from softflow.data import references
 from softflow.models import checkpoints
@@ -244,6 +245,13 @@ def test_the_study_runs_in_process_and_scores_every_observation(sim, tmp_path, m
         assert flows[column].notna().all()
     assert flows[["tip_step_mm_draw", "tip_step_mm_mean_of_draws"]].notna().all().all()
     assert (rows.tip_step_mm > 0).all() and (rows.rmse_mm > 0).all()
+
+    # the notebook's models are the cells' own: found where the cells trained them, planned as the study plans
+    found = two_segment.trained_controllers(tmp_path / "two_segment", "ci", "tip", ["mlp", "rf"])
+    assert [c.name for c in found] == ["mlp"] and found[0].workspace_margin is None  # no rf on the tip was trained
+    measured, _ = evaluate_many(found, two_segment.references(sim, "ci"), sim)
+    study = rows[rows.model == "mlp"].set_index("reference").rmse_mm
+    np.testing.assert_allclose(measured.set_index("reference").rmse_mm, study.loc[measured.reference], rtol=1e-9)
 
     # the one-step check from the true state with the true u lands on the true next tip
     dataset = data.load_dataset(SMALL, TWO_SEGMENT_ROD, progress=False)

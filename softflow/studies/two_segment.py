@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from softflow import data, training
-from softflow.control.planning import Controller, pad_plans, plan_all, score
+from softflow.control.planning import Controller, load_controller, pad_plans, plan_all, score
 from softflow.data.dataset import tip_of
 from softflow.data.references import (
     PATH3D_STARTS,
@@ -26,9 +26,10 @@ from softflow.data.references import (
     random_references,
     shape_reference,
 )
+from softflow.models.checkpoints import checkpoint_path
 from softflow.profiles import PROFILES
 from softflow.rod.dynamics import Simulator
-from softflow.rod.robots import TWO_SEGMENT_ROD
+from softflow.rod.robots import TWO_SEGMENT_ROD, rod_folder
 from softflow.store import cache_file, cached_arrays
 from softflow.studies import ambiguity
 from softflow.studies.data_size import DATA_SIZE
@@ -129,7 +130,7 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
         TWO_SEGMENT_ROD,
         GRAVITY,
         seed=cell["seed"],
-        root=workdir / "models" / profile_name / observation,
+        root=_models_root(workdir, profile_name, observation),
         device=device,
     )
     controller = Controller(model, cell["model"], robot=TWO_SEGMENT_ROD, gravity=GRAVITY, workspace_margin=None)
@@ -200,6 +201,26 @@ def _true_steps(grid: dict, dataset: data.Dataset, sim: Simulator, workdir: Path
 
     stem = data.dataset_path(grid["data"], TWO_SEGMENT_ROD, GRAVITY).stem
     return cached_arrays(cache_file(workdir, "true-steps", dict(dataset=stem, episodes=episodes.tolist())), compute)
+
+
+def trained_controllers(workdir: Path, profile_name: str, observation: str, models, seed: int = 0) -> list[Controller]:
+    """The controllers of ``models`` (names) that the study's cells trained for ``observation`` into
+    ``workdir`` (the sweep's folder of this study), each planning as the study plans: extrapolation
+    is measured, not refused. Models not trained on this machine are left out (a fresh clone has
+    the study's rows, not its models)."""
+    root = _models_root(workdir, profile_name, observation)
+    controllers = []
+    for name in dict.fromkeys(models):
+        path = checkpoint_path(name, profile_name, rod_folder(TWO_SEGMENT_ROD, GRAVITY), seed=seed, root=root)
+        if path.is_file():
+            controller = load_controller(path, robot=TWO_SEGMENT_ROD, gravity=GRAVITY)
+            controller.workspace_margin = None
+            controllers.append(controller)
+    return controllers
+
+
+def _models_root(workdir: Path, profile_name: str, observation: str) -> Path:
+    return Path(workdir) / "models" / profile_name / observation
 
 
 def _budget(profile_name: str):
