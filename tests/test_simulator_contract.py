@@ -98,3 +98,15 @@ def test_inverse_statics_still_fits_points_a_few_centimetres_off_the_static_surf
     off = sim.static_tip(u) + np.array([[0.0, 0.03, 0.0]])  # a moving tip is off the static surface
     fitted = sim.inverse_static(off)
     assert np.linalg.norm(sim.static_tip(fitted) - off) < np.linalg.norm(sim.static_tip(u) - off)
+
+
+def test_stacked_frames_are_the_separate_calls_bit_for_bit():
+    """A step stacks q and q +- eps qd into one frames call (what costs is the sequential product
+    over segments, per call); every row is computed alone, so the bits are those of three calls."""
+    kinematics = Simulator(SIM_ROBOT).kinematics
+    q, qd = np.random.default_rng(3).normal(size=(2, 5, kinematics.nq))
+    here, plus, minus, eps = kinematics.frames_along(q, qd, 1e-3)
+    for name, value in kinematics.frames(q).items():
+        np.testing.assert_array_equal(here[name], value, err_msg=name)
+    np.testing.assert_array_equal(plus, kinematics.frames(q + eps * qd)["positions"])
+    np.testing.assert_array_equal(minus, kinematics.frames(q - eps * qd)["positions"])

@@ -45,6 +45,9 @@ _CONVECTIVE_STEP = 1e-3  # 1/m
 # Episodes a rollout thread gets at least: below this a step is numpy call overhead under the
 # GIL, and splitting the batch doubles the overhead instead of sharing the work.
 MIN_THREAD_CHUNK = 64
+# Rows of one tip_state call when a rollout reads its states: enough to spread the per-call cost
+# of the frames, few enough that their (rows, N, 3, 3) rotations stay in cache.
+_TIP_STATE_ROWS = 2048
 _REACH = 1e-9  # m: fit_holding's tip must be this close to p (an exact fit, 3 equations in m - 1 >= 3 unknowns)
 
 
@@ -198,8 +201,8 @@ class Simulator:
 
     def tip_state(self, q, qd):
         """Tip position and velocity (B, 6); velocity by a central difference along qd (D2)."""
-        plus, minus, eps = self.kinematics.positions_along(q, qd, _CONVECTIVE_STEP)
-        return np.concatenate([self.tip_positions(q), (plus[:, -1] - minus[:, -1]) / (2 * eps)], -1)
+        f, plus, minus, eps = self.kinematics.frames_along(q, qd, _CONVECTIVE_STEP)
+        return np.concatenate([f["positions"][:, -1], (plus[:, -1] - minus[:, -1]) / (2 * eps)], -1)
 
     def disk_positions(self, q):
         """Position of each segment's end disk, base outwards, the tip last: q (..., nq) -> (..., S, 3)
@@ -215,17 +218,17 @@ class Simulator:
         return q @ self.anchor_integrals
 
     # ------------------------------------------------------------------ dynamics
-    def _convective_force(self, Jp, q, qd, positions):
+    def _convective_force(self, Jp, positions, along):
         """c = sum_n m_n Jp_n^T (d Jp_n/dt) qd (D2): the node accelerations along qd by a
-        second central difference of the exact positions."""
-        plus, minus, eps = self.kinematics.positions_along(q, qd, _CONVECTIVE_STEP)
+        second central difference of the exact positions (``along``: positions_along's)."""
+        plus, minus, eps = along
         acceleration = (plus - 2 * positions + minus) / (eps**2)[..., None]
-        weighted = (acceleration * self.node_mass[:, None]).reshape(len(q), 1, -1)  # (B, 1, 3N)
-        return (weighted @ Jp.reshape(len(q), -1, self.nq))[:, 0]
+        weighted = (acceleration * self.node_mass[:, None]).reshape(len(Jp), 1, -1)  # (B, 1, 3N)
+        return (weighted @ Jp.reshape(len(Jp), -1, self.nq))[:, 0]
 
-    def _dynamics_terms(self, q):
-        """Frames, Jp, M(q) = sum_n m_n Jp_n^T Jp_n and the gravity force G(q) (D1)."""
-        f = self.kinematics.frames(q)
+    def _dynamics_terms(self, q, f=None):
+        """Frames (``frames(q)`` unless given), Jp, M(q) = sum_n m_n Jp_n^T Jp_n and the gravity force G(q) (D1)."""
+        f = self.kinematics.frames(q) if f is None else f
         Jp = self.kinematics.position_jacobians(f)  # (B, N, 3, nq)
         flat = (Jp * np.sqrt(self.node_mass)[None, :, None, None]).reshape(Jp.shape[0], -1, self.nq)
         M = flat.transpose(0, 2, 1) @ flat
@@ -256,14 +259,16 @@ class Simulator:
         half step; the convective force predicted with qd, then corrected once with the
         mean velocity of the step (keeps it second order and the energy balance tight)."""
         q_half = q + 0.5 * h * qd
-        f, Jp, M, G = self._dynamics_terms(q_half)
+        here, *predicted = self.kinematics.frames_along(q_half, qd, _CONVECTIVE_STEP)  # one call: 3 frames
+        f, Jp, M, G = self._dynamics_terms(q_half, here)
         K, D = self.stiffness, self.damping_matrix
         implicit = 0.5 * h * D + 0.25 * h * h * K
         lhs = M + implicit
         known = np.einsum("bij,bj->bi", M, qd) - rowwise(qd, implicit.T) + h * (force + G - rowwise(q, K.T))
         qd_next = qd
-        for _ in range(2):  # predictor, corrector
-            c = self._convective_force(Jp, q_half, 0.5 * (qd + qd_next), f["positions"])
+        for along in (predicted, None):  # predictor (along qd), corrector (along the step's mean velocity)
+            along = along or self.kinematics.positions_along(q_half, 0.5 * (qd + qd_next), _CONVECTIVE_STEP)
+            c = self._convective_force(Jp, f["positions"], along)
             qd_next = np.linalg.solve(lhs, (known - h * c)[..., None])[..., 0]
         return q + 0.5 * h * (qd + qd_next), qd_next
 
@@ -318,10 +323,21 @@ class Simulator:
         q0, qd0 = np.broadcast_to(q0, (B, self.nq)), np.zeros((B, self.nq))
 
         def work(c):
-            qs, qds = self._advance(u[c], q0[c], qd0[c])
-            return (np.stack([self.tip_state(qs[:, t], qds[:, t]) for t in range(qs.shape[1])], 1),)
+            qs, qds = self._advance(u[c], q0[c], qd0[c])  # (b, T+1, nq) each
+            return (self._tip_states(qs, qds),)
 
         return self._map_chunks(work, B, progress)[0]
+
+    def _tip_states(self, qs, qds):
+        """tip_state at every sample of histories (b, T+1, nq) -> (b, T+1, 6), blocks of samples per
+        call (the rows are independent: the bits of one call per sample)."""
+        b, samples = qs.shape[:2]
+        per_call = max(1, _TIP_STATE_ROWS // b)
+        blocks = [
+            self.tip_state(qs[:, t : t + per_call].reshape(-1, self.nq), qds[:, t : t + per_call].reshape(-1, self.nq))
+            for t in range(0, samples, per_call)
+        ]
+        return np.concatenate([block.reshape(b, -1, 6) for block in blocks], 1)
 
     # ------------------------------------------------------------------ statics (softflow.statics)
     def static_q(self, u):

@@ -180,5 +180,16 @@ class RodKinematics:
         """Node positions at q + eps qd and q - eps qd, and eps (B, 1) = step / max|qd|: the
         central differences of the exact kinematics that give velocities and the convective
         term (K4). Truncation error ~ eps^2 |d^3 p / d eps^3|, round-off ~ 1e-16 |p| / eps."""
+        _, plus, minus, eps = self.frames_along(q, qd, step, at_q=False)
+        return plus, minus, eps
+
+    def frames_along(self, q, qd, step: float, *, at_q: bool = True):
+        """``frames(q)`` (None without ``at_q``) and ``positions_along(q, qd, step)`` from one
+        stacked call: the sequential product over segments costs per call, not per row, and
+        every row is computed alone (``rowwise``), so the bits are those of separate calls."""
+        B = len(q)
         eps = step / np.maximum(np.abs(qd).max(-1, keepdims=True), 1e-12)
-        return self.frames(q + eps * qd)["positions"], self.frames(q - eps * qd)["positions"], eps
+        f = self.frames(np.concatenate([q, q + eps * qd, q - eps * qd] if at_q else [q + eps * qd, q - eps * qd]))
+        positions = f["positions"][B:] if at_q else f["positions"]  # (2B, N, 3): plus, then minus
+        here = {name: value[:B] for name, value in f.items()} if at_q else None
+        return here, positions[:B], positions[B:], eps
