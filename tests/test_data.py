@@ -113,8 +113,8 @@ def test_mask_covers_exactly_the_path_after_the_approach(sim, circle):
 
 
 def test_a_path_outside_the_workspace_raises(sim):
-    with pytest.raises(ValueError, match="workspace"):
-        data.shape_reference(sim, "circle", size=0.35)
+    with pytest.raises(ValueError, match="workspace"):  # fast: every sample of the path is lifted first
+        data.shape_reference(sim, "circle", size=0.35, speed=1.5)
 
 
 def test_actuated_references_keep_their_true_input(sim):
