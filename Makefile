@@ -12,7 +12,7 @@ PROFILE ?= paper
 BENCH_PROFILE ?= ci
 NOTEBOOKS := $(sort $(wildcard notebooks/[0-9]*.ipynb))
 
-.PHONY: venv test lint reproduce study bench lab clean lock strip
+.PHONY: venv test lint reproduce study bench bench-setup lab clean lock strip
 
 venv: $(STAMP)
 
@@ -86,6 +86,12 @@ bench: $(STAMP) $(ELASTICA)  # PyElastica is a benchmark-only dependency, in its
 	$(PY) benchmarks/bench_planning.py --profile $(BENCH_PROFILE)
 	$(PY) benchmarks/bench_training.py --profile $(BENCH_PROFILE)
 	$(PY) benchmarks/bench_sweep.py
+
+# What a newcomer waits for (long: about as much as make test and a ci reproduce together):
+# make venv + make test on a fresh clone, and each notebook's ci run.
+bench-setup: $(STAMP)
+	$(PY) benchmarks/bench_fresh_clone.py
+	$(PY) benchmarks/bench_notebooks.py
 
 lab: $(STAMP)
 	$(VENV)/bin/jupyter lab notebooks
