@@ -17,6 +17,7 @@ from softflow.control import planning
 from softflow.data.references import HARDWARE_SHAPES
 from softflow.hardware import recorder
 from softflow.profiles import PROFILES, TrainConfig
+from softflow.report import study_tables
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import HW_ROBOT, U_MAX
 from softflow.studies import recorded, sweep
@@ -216,3 +217,28 @@ def test_changing_how_runs_are_recorded_rekeys_the_rows_of_their_models(monkeypa
         assert after[0] != before[0] and after[1] != before[1] and after[2] == before[2]
         monkeypatch.undo()
         assert keys() == before
+
+
+def test_the_table_gives_each_condition_and_model_its_interval():
+    """Hand-made rows: a model of 8 recorded runs (two seeds, two shapes) and the simulator-trained
+    RF-FWD open (one seed); the means are the rows' own, each condition apart, the true tip beside."""
+    recorded_rows = [
+        dict(gravity="vertical", gap="friction", trained_on="recordings", runs=8, mode="planned-commands", model="mlp",
+             seed=seed, reference=reference, family="shape", rmse_mm=value, rmse_true_mm=value + 1)
+        for seed, reference, value in [(0, "star", 1.0), (0, "circle", 3.0), (1, "star", 2.0), (1, "circle", 6.0)]
+    ]  # fmt: skip
+    simulator_rows = [
+        dict(gravity="vertical", gap="friction", trained_on="simulator", runs=np.nan, mode="open", model="rf-fwd",
+             seed=0, reference=reference, family="shape", rmse_mm=value, rmse_true_mm=value)
+        for reference, value in [("star", 5.0), ("circle", 7.0)]
+    ]  # fmt: skip
+    table = study_tables.recorded_table(pd.DataFrame(recorded_rows + simulator_rows))
+    assert list(table.index) == [
+        ("vertical", "friction, 8 runs", "mlp"),
+        ("vertical", "friction, simulator, open", "rf-fwd"),
+    ]
+    means = table["shape_mm"].str.split(" ").str[0].astype(float)
+    np.testing.assert_allclose(means, [3.0, 6.0])
+    np.testing.assert_allclose(table["shape_true_mm"].str.split(" ").str[0].astype(float), [4.0, 6.0])
+    assert list(table["shape_seeds x refs"]) == ["2 x 2", "1 x 2"]
+    assert study_tables.recorded_table(pd.DataFrame()).empty

@@ -391,3 +391,41 @@ def _verdict(intervals, model: str, other: str = "mlp") -> str:
     if not side:
         return "no ranking"
     return f"{LABELS[model]} lower" if side < 0 else f"{LABELS[other]} lower"
+
+
+# ---------------------------------------------------------------------------- the recorded study (notebook 13)
+
+
+def recorded_conditions(rows: pd.DataFrame) -> pd.Series:
+    """Each row's condition in words: what its model learned from, under which gap; "friction,
+    720 runs" for a model of recordings, "friction, simulator, open" for the simulator-trained
+    RF-FWD in a loop mode."""
+    runs = rows["runs"] if "runs" in rows else np.full(len(rows), np.nan)  # simulator cells have none
+    learned = [
+        f"{gap}, {n:.0f} runs" if trained_on == "recordings" else f"{gap}, simulator, {mode}"
+        for gap, trained_on, n, mode in zip(rows["gap"], rows["trained_on"], runs, rows["mode"])
+    ]
+    return pd.Series(learned, index=rows.index, name="condition")
+
+
+def recorded_table(rows: pd.DataFrame) -> pd.DataFrame:
+    """The recorded study's table: per configuration, condition (``recorded_conditions``) and
+    model, "mean [low, high]" tracking RMSE in mm through the camera and of the true tip per
+    reference family, with the seeds and references behind it (bootstrap over both)."""
+    index = ["gravity", "condition", "model"]
+    if rows.empty:
+        return pd.DataFrame(index=pd.MultiIndex.from_tuples([], names=index))
+    parts = {}
+    for (gravity, condition), part in rows.assign(condition=recorded_conditions(rows)).groupby(
+        ["gravity", "condition"], sort=False
+    ):
+        columns = {}
+        for family in _families(part):
+            camera, true = (with_ci(part, value, family) for value in ("rmse_mm", "rmse_true_mm"))
+            columns[f"{family}_mm"] = interval_text(camera)
+            columns[f"{family}_true_mm"] = interval_text(true)
+            columns[f"{family}_seeds x refs"] = pd.Series(
+                [f"{r.seeds:.0f} x {r.references:.0f}" for r in camera.itertuples()], index=camera.index
+            )
+        parts[(gravity, condition)] = pd.DataFrame(columns)
+    return pd.concat(parts, names=index)
