@@ -242,3 +242,36 @@ def test_the_table_gives_each_condition_and_model_its_interval():
     np.testing.assert_allclose(table["shape_true_mm"].str.split(" ").str[0].astype(float), [4.0, 6.0])
     assert list(table["shape_seeds x refs"]) == ["2 x 2", "1 x 2"]
     assert study_tables.recorded_table(pd.DataFrame()).empty
+
+
+def test_the_recording_rule_compares_the_better_of_each_side():
+    """Four shapes. On 60 runs RF (1 mm better than MLP) is clearly below the simulator's better mode,
+    open-calibrated; on 12 runs MLP wobbles about it by +-1 mm: no ranking."""
+    shapes = ("star", "spiral", "circle", "heart")
+    base = np.array([4.0, 5.0, 6.0, 7.0])
+    common = dict(gravity="vertical", gap="friction", family="shape")
+
+    def rows(model, trained_on, values, runs=np.nan, mode="planned-commands", seeds=(0, 1)):
+        return [
+            dict(common, model=model, trained_on=trained_on, runs=runs, mode=mode, seed=seed, reference=r, rmse_mm=v)
+            for seed in seeds
+            for r, v in zip(shapes, values + 0.1 * seed)
+        ]
+
+    table = study_tables.recording_rule(
+        pd.DataFrame(
+            rows("rf-fwd", "simulator", base + 2, mode="open", seeds=(0,))
+            + rows("rf-fwd", "simulator", base, mode="open-calibrated", seeds=(0,))
+            + rows("rf-fwd", "simulator", base - 3, mode="closed-ilc-calibrated", seeds=(0,))  # not ranked against
+            + rows("mlp", "recordings", base - 1, runs=60)
+            + rows("rf", "recordings", base - 2, runs=60)
+            + rows("mlp", "recordings", base + np.array([1.0, -1.0, 1.0, -1.0]), runs=12)
+            + rows("rf", "recordings", base + 3, runs=12)
+            + [dict(row, gap="typical") for row in rows("rf", "recordings", base - 5, runs=60)]  # another gap
+        )
+    )
+    assert list(table.index) == [("vertical", 12), ("vertical", 60)]
+    assert set(table.best_simulator) == {"rf-fwd | friction, simulator, open-calibrated"}
+    assert list(table.best_recorded) == ["mlp | friction, 12 runs", "rf | friction, 60 runs"]
+    np.testing.assert_allclose(table.difference_mm, [0.05, -1.95])  # the recorded seeds' mean is +0.05
+    assert list(table.verdict) == ["no ranking", "recordings beat the simulator"]

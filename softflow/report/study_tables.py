@@ -429,3 +429,52 @@ def recorded_table(rows: pd.DataFrame) -> pd.DataFrame:
             )
         parts[(gravity, condition)] = pd.DataFrame(columns)
     return pd.concat(parts, names=index)
+
+
+RECORDING_RULE = (
+    "gravity",
+    "runs",
+    "best_recorded",
+    "best_simulator",
+    "difference_mm",
+    "low",
+    "high",
+    "t_low",
+    "t_high",
+    "verdict",
+)
+
+
+def recording_rule(rows: pd.DataFrame, family: str = "shape", value: str = "rmse_mm") -> pd.DataFrame:
+    """The recorded study's "how much recording" rule, per configuration and recording size under
+    friction: the better of MLP and RF trained on that many runs minus the better of the
+    simulator-trained RF-FWD open and open-calibrated (open loop against open loop), with its
+    bootstrap and paired t-intervals; "beats" or "worse" only where both exclude 0. A size or a
+    configuration without both sides in the rows is left out."""
+    part = rows[(rows["gap"] == "friction") & (rows["family"] == family)] if len(rows) else rows
+    out = []
+    if len(part):
+        part = part.assign(learner=part["model"], model=part["model"] + " | " + recorded_conditions(part))
+    for gravity, config in part.groupby("gravity", sort=False) if len(part) else ():
+        means = stats.summarise(config, value, by=("model",)).set_index("model")["mean"]
+        simulator = config[(config["trained_on"] == "simulator") & config["mode"].isin(("open", "open-calibrated"))]
+        recorded = config[(config["trained_on"] == "recordings") & config["learner"].isin(("mlp", "rf"))]
+        if simulator.empty:
+            continue
+        best_simulator = means[simulator["model"].unique()].idxmin()
+        for runs, sized in recorded.groupby("runs"):
+            best = means[sized["model"].unique()].idxmin()
+            interval, t = compare(config, best, best_simulator, family, value)
+            side = stats.ranking(interval, t)
+            verdict = {-1: "recordings beat the simulator", 1: "recordings worse"}.get(side, "no ranking")
+            out.append(
+                dict(
+                    gravity=gravity,
+                    runs=int(runs),
+                    best_recorded=best,
+                    best_simulator=best_simulator,
+                    **_interval_columns(interval, t),
+                    verdict=verdict,
+                )
+            )
+    return pd.DataFrame(out, columns=RECORDING_RULE).set_index(["gravity", "runs"])
