@@ -275,3 +275,32 @@ def test_the_recording_rule_compares_the_better_of_each_side():
     assert list(table.best_recorded) == ["mlp | friction, 12 runs", "rf | friction, 60 runs"]
     np.testing.assert_allclose(table.difference_mm, [0.05, -1.95])  # the recorded seeds' mean is +0.05
     assert list(table.verdict) == ["no ranking", "recordings beat the simulator"]
+
+
+def test_the_model_rule_ranks_on_the_most_runs_and_sees_friction_change_the_winner():
+    """Under friction on 60 runs RF is 2 mm below LSTM and MLP (on 12 runs, ignored, it is not);
+    without friction RF is 2 mm above MLP: rankings of opposite sign, so friction changes the winner."""
+    shapes, base = ("star", "spiral", "circle", "heart"), np.array([4.0, 5.0, 6.0, 7.0])
+
+    def rows(model, gap, runs, values):
+        return [
+            dict(gravity="vertical", gap=gap, trained_on="recordings", runs=runs, mode="planned-commands",
+                 model=model, seed=seed, reference=r, family="shape", rmse_mm=v)
+            for seed in (0, 1)
+            for r, v in zip(shapes, values + 0.1 * seed)
+        ]  # fmt: skip
+
+    table = study_tables.recorded_model_rule(
+        pd.DataFrame(
+            rows("mlp", "friction", 60, base)
+            + rows("lstm", "friction", 60, base + 0.5)
+            + rows("rf", "friction", 60, base - 2)
+            + rows("rf", "friction", 12, base + 9)
+            + rows("mlp", "typical", 60, base)
+            + rows("rf", "typical", 60, base + 2)
+        )
+    )
+    assert list(table.index) == [("vertical", "friction"), ("vertical", "typical")]
+    assert list(table.best_baseline) == ["mlp", "mlp"] and list(table.best_rf) == ["rf", "rf"]
+    np.testing.assert_allclose(table.difference_mm, [-2.0, 2.0])
+    assert list(table.verdict) == ["RF lower", "RF higher"] and table.friction_changes.all()

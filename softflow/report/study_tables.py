@@ -478,3 +478,26 @@ def recording_rule(rows: pd.DataFrame, family: str = "shape", value: str = "rmse
                 )
             )
     return pd.DataFrame(out, columns=RECORDING_RULE).set_index(["gravity", "runs"])
+
+
+def recorded_model_rule(rows: pd.DataFrame, family: str = "shape", value: str = "rmse_mm") -> pd.DataFrame:
+    """The recorded study's "which model is best" rule, per configuration and gap among the models
+    of recordings on the most runs: the best RF variant minus the best baseline (under friction,
+    all five models; under the typical gap, RF minus MLP), as ``best_against_best``. Column
+    ``friction_changes``: True where the two gaps' verdicts are rankings of opposite sign."""
+    learned = rows[rows["trained_on"] == "recordings"] if len(rows) else rows
+    out = {}
+    for (gravity, gap), part in learned.groupby(["gravity", "gap"], sort=False) if len(learned) else ():
+        most = part[part["runs"] == part["runs"].max()]
+        table = best_against_best(most, value, families=(family,))
+        if len(table):
+            out[(gravity, gap)] = table.iloc[0].rename(None)
+    table = pd.DataFrame(list(out.values()), index=pd.MultiIndex.from_tuples(list(out), names=["gravity", "gap"]))
+    if table.empty:
+        return pd.DataFrame(columns=[*BEST_AGAINST_BEST, "friction_changes"])
+    sides = {key: stats.ranking(*row_intervals(row)) for key, row in table.iterrows()}
+    changes = {
+        gravity: sides.get((gravity, "friction"), 0) * sides.get((gravity, "typical"), 0) < 0
+        for gravity in table.index.get_level_values("gravity")
+    }
+    return table.assign(friction_changes=[changes[gravity] for gravity, _ in table.index])
