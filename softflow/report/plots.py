@@ -729,3 +729,43 @@ def tracking_depth(runs: dict, references: dict, names, dt: float):
         ax_x.set(xlabel="t [s]", ylabel="depth x [mm]")
     _figure_legend(fig, axes[0, -1], 4)
     return fig
+
+
+@_styled
+def recording(frames_time, frames_tip, smoothed, column: int = 1):
+    """One recorded run's tip coordinate ``column`` (1: lateral y): the camera's frames
+    (``frames_time`` (F,) s, ``frames_tip`` (F, k) m, NaN where a frame was lost) as dots and the
+    smoother's estimate (``smoothed``: a ``recordings.Recording``) as a line (left), and its
+    velocity beside finite differences of the frames (right), which the smoother replaces."""
+    k = smoothed.states.shape[1] // 2
+    kept = np.isfinite(frames_tip[:, column])
+    t, x = frames_time[kept], frames_tip[kept, column]
+    fig, (ax_p, ax_v) = plt.subplots(1, 2, figsize=(9.0, 3.0))
+    ax_p.plot(t, x * MM, ".", color="0.55", ms=4, label="camera frames")
+    ax_p.plot(smoothed.times, smoothed.states[:, column] * MM, color="k", lw=1.4, label="smoothed")
+    ax_p.set(xlabel="t [s]", ylabel=f"{smoothed.tip_columns[column].split('_')[0]} [mm]", title="tip position")
+    ax_v.plot((t[1:] + t[:-1]) / 2, np.diff(x) / np.diff(t) * MM, color="0.55", lw=0.8, label="finite differences")
+    ax_v.plot(smoothed.times, smoothed.states[:, k + column] * MM, color="k", lw=1.4, label="smoother (RTS)")
+    ax_v.set(xlabel="t [s]", ylabel="velocity [mm/s]", title="tip velocity")
+    ax_v.legend(loc="best")
+    ax_p.legend(loc="best")
+    return fig
+
+
+@_styled
+def hysteresis(loops: dict):
+    """Hysteresis loops of the twin (``loops``: {friction coefficient: twin.HysteresisLoop}): the
+    lateral tip against u1 along the slower cycle's down (solid) and up (dashed) branches (left),
+    and the gap between the branches once rate effects are removed, in % of the reach (right)."""
+    fig, (ax_loop, ax_gap) = plt.subplots(1, 2, figsize=(9.0, 3.2))
+    for k, (mu, loop) in enumerate(loops.items()):
+        style = dict(color=f"C{k}")
+        ax_loop.plot(loop.down[:, 0], loop.down[:, 1] * MM, "-", **style, label=f"$\\mu$ = {mu:g}")
+        ax_loop.plot(loop.up[:, 0], loop.up[:, 1] * MM, "--", **style)
+        ax_gap.plot(loop.u, 100 * loop.gap, **style, label=f"$\\mu$ = {mu:g}: width {100 * loop.width:.2f} %")
+    ax_loop.set(xlabel="$u_1$ [N]", ylabel="lateral tip y [mm]", title="down (solid) and up (dashed)")
+    ax_gap.axhline(0, color="0.6", lw=0.8)
+    ax_gap.set(xlabel="$u_1$ [N]", ylabel="down - up [% of reach]", title="the loop, rate effects removed")
+    ax_loop.legend(loc="upper left")
+    ax_gap.legend(loc="lower center")
+    return fig

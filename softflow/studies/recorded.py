@@ -177,8 +177,9 @@ def _simulator_rows(cell, profile_name, device, workdir, sim, scored) -> list[di
     (paper: the shipped one) in the cell's loop mode; calibrated modes after an identification
     run on this rig (its gap)."""
     profile, gravity, gap = get_profile(profile_name), cell["gravity"], GAPS[cell["gap"]]
-    # the sweep's own folders: a ci model is trained there, a paper cell finds the shipped one
-    dataset = data.DatasetOnDemand(profile, HW_ROBOT, gravity, progress=False, data_dir=workdir / "datasets")
+    # a ci model is trained in the sweep's folder, a paper cell finds the shipped one; the dataset is
+    # the profile's, shared with closed_loop and notebook 06 (made only to train)
+    dataset = data.DatasetOnDemand(profile, HW_ROBOT, gravity, progress=False)
     model, _ = training.ensure_trained(
         cell["model"], profile, dataset, HW_ROBOT, gravity, root=workdir / "models" / profile_name, device=device
     )
