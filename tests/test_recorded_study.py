@@ -17,7 +17,7 @@ from softflow.control import planning
 from softflow.data.references import HARDWARE_SHAPES
 from softflow.hardware import recorder
 from softflow.profiles import PROFILES, TrainConfig
-from softflow.report import study_tables
+from softflow.report import page, study_tables
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import HW_ROBOT, U_MAX
 from softflow.studies import recorded, sweep
@@ -244,32 +244,49 @@ def test_the_table_gives_each_condition_and_model_its_interval():
     assert study_tables.recorded_table(pd.DataFrame()).empty
 
 
-def test_the_recording_rule_compares_the_better_of_each_side():
-    """Four shapes. On 60 runs RF (1 mm better than MLP) is clearly below the simulator's better mode,
-    open-calibrated; on 12 runs MLP wobbles about it by +-1 mm: no ranking."""
-    shapes = ("star", "spiral", "circle", "heart")
-    base = np.array([4.0, 5.0, 6.0, 7.0])
-    common = dict(gravity="vertical", gap="friction", family="shape")
+SHAPES, BASE = ("star", "spiral", "circle", "heart"), np.array([4.0, 5.0, 6.0, 7.0])
 
-    def rows(model, trained_on, values, runs=np.nan, mode="planned-commands", seeds=(0, 1)):
-        return [
-            dict(common, model=model, trained_on=trained_on, runs=runs, mode=mode, seed=seed, reference=r, rmse_mm=v)
-            for seed in seeds
-            for r, v in zip(shapes, values + 0.1 * seed)
-        ]
 
-    table = study_tables.recording_rule(
-        pd.DataFrame(
-            rows("rf-fwd", "simulator", base + 2, mode="open", seeds=(0,))
-            + rows("rf-fwd", "simulator", base, mode="open-calibrated", seeds=(0,))
-            + rows("rf-fwd", "simulator", base - 3, mode="closed-ilc-calibrated", seeds=(0,))  # not ranked against
-            + rows("mlp", "recordings", base - 1, runs=60)
-            + rows("rf", "recordings", base - 2, runs=60)
-            + rows("mlp", "recordings", base + np.array([1.0, -1.0, 1.0, -1.0]), runs=12)
-            + rows("rf", "recordings", base + 3, runs=12)
-            + [dict(row, gap="typical") for row in rows("rf", "recordings", base - 5, runs=60)]  # another gap
-        )
+def shape_rows(model, trained_on, values, *, gap="friction", runs=np.nan, mode="planned-commands", seeds=(0, 1)):
+    """Hand-made rows of one model and condition on the four shapes, seed s adding 0.1 s mm."""
+    return [
+        dict(gravity="vertical", gap=gap, family="shape", model=model, trained_on=trained_on, runs=runs, mode=mode,
+             seed=seed, reference=r, rmse_mm=v)
+        for seed in seeds
+        for r, v in zip(SHAPES, values + 0.1 * seed)
+    ]  # fmt: skip
+
+
+def rule_rows() -> pd.DataFrame:
+    """On 60 runs RF (1 mm better than MLP) is clearly below the simulator's better mode,
+    open-calibrated; on 12 runs MLP wobbles about it by +-1 mm."""
+    return pd.DataFrame(
+        shape_rows("rf-fwd", "simulator", BASE + 2, mode="open", seeds=(0,))
+        + shape_rows("rf-fwd", "simulator", BASE, mode="open-calibrated", seeds=(0,))
+        + shape_rows("rf-fwd", "simulator", BASE - 3, mode="closed-ilc-calibrated", seeds=(0,))  # not ranked against
+        + shape_rows("mlp", "recordings", BASE - 1, runs=60)
+        + shape_rows("rf", "recordings", BASE - 2, runs=60)
+        + shape_rows("mlp", "recordings", BASE + np.array([1.0, -1.0, 1.0, -1.0]), runs=12)
+        + shape_rows("rf", "recordings", BASE + 3, runs=12)
+        + shape_rows("rf", "recordings", BASE - 5, runs=60, gap="typical")  # another gap
     )
+
+
+def model_rule_rows() -> pd.DataFrame:
+    """Under friction on 60 runs RF is 2 mm below LSTM and MLP (on 12 runs, ignored, it is not);
+    without friction RF is 2 mm above MLP."""
+    return pd.DataFrame(
+        shape_rows("mlp", "recordings", BASE, runs=60)
+        + shape_rows("lstm", "recordings", BASE + 0.5, runs=60)
+        + shape_rows("rf", "recordings", BASE - 2, runs=60)
+        + shape_rows("rf", "recordings", BASE + 9, runs=12)
+        + shape_rows("mlp", "recordings", BASE, runs=60, gap="typical")
+        + shape_rows("rf", "recordings", BASE + 2, runs=60, gap="typical")
+    )
+
+
+def test_the_recording_rule_compares_the_better_of_each_side():
+    table = study_tables.recording_rule(rule_rows())
     assert list(table.index) == [("vertical", 12), ("vertical", 60)]
     assert set(table.best_simulator) == {"rf-fwd | friction, simulator, open-calibrated"}
     assert list(table.best_recorded) == ["mlp | friction, 12 runs", "rf | friction, 60 runs"]
@@ -278,29 +295,21 @@ def test_the_recording_rule_compares_the_better_of_each_side():
 
 
 def test_the_model_rule_ranks_on_the_most_runs_and_sees_friction_change_the_winner():
-    """Under friction on 60 runs RF is 2 mm below LSTM and MLP (on 12 runs, ignored, it is not);
-    without friction RF is 2 mm above MLP: rankings of opposite sign, so friction changes the winner."""
-    shapes, base = ("star", "spiral", "circle", "heart"), np.array([4.0, 5.0, 6.0, 7.0])
-
-    def rows(model, gap, runs, values):
-        return [
-            dict(gravity="vertical", gap=gap, trained_on="recordings", runs=runs, mode="planned-commands",
-                 model=model, seed=seed, reference=r, family="shape", rmse_mm=v)
-            for seed in (0, 1)
-            for r, v in zip(shapes, values + 0.1 * seed)
-        ]  # fmt: skip
-
-    table = study_tables.recorded_model_rule(
-        pd.DataFrame(
-            rows("mlp", "friction", 60, base)
-            + rows("lstm", "friction", 60, base + 0.5)
-            + rows("rf", "friction", 60, base - 2)
-            + rows("rf", "friction", 12, base + 9)
-            + rows("mlp", "typical", 60, base)
-            + rows("rf", "typical", 60, base + 2)
-        )
-    )
+    table = study_tables.recorded_model_rule(model_rule_rows())
     assert list(table.index) == [("vertical", "friction"), ("vertical", "typical")]
     assert list(table.best_baseline) == ["mlp", "mlp"] and list(table.best_rf) == ["rf", "rf"]
     np.testing.assert_allclose(table.difference_mm, [-2.0, 2.0])
     assert list(table.verdict) == ["RF lower", "RF higher"] and table.friction_changes.all()
+
+
+def test_the_results_paragraph_says_each_verdict_whichever_way_and_on_how_many_cells():
+    paragraph = page.recorded_summary(
+        study_tables.recording_rule(rule_rows()), study_tables.recorded_model_rule(model_rule_rows()), 7, 78
+    )
+    assert "vertical, 12 runs: +0.05 mm [" in paragraph and "(no ranking)" in paragraph
+    assert "vertical, 60 runs: -1.95 mm [" in paragraph and "(recordings beat the simulator)" in paragraph
+    assert "vertical under the friction gap -2.00 mm [" in paragraph and "(RF against MLP: RF lower)" in paragraph
+    assert "friction changes which model is best (vertical)." in paragraph
+    assert paragraph.endswith("(7 of the study's 78 cells have rows.)")
+    nothing = page.recorded_summary(pd.DataFrame(), pd.DataFrame(), 0, 78)
+    assert "no comparison has rows of both its sides yet (0 of the study's 78 cells" in nothing

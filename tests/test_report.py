@@ -509,6 +509,7 @@ def test_results_page_holds_every_table_and_section_and_only_existing_figures(pr
         "## Where a flow beats regression (notebook 09)",
         "## RF-FWD's consistency weight (notebook 11)",
         "## A two-segment rod: four inputs, one tip (notebook 12)",
+        "## Learning from recorded runs (notebook 13)",
         "## The paper's claims, reproduced or not",
         "## Design choices",
         "## Key figures",

@@ -18,6 +18,8 @@ from softflow.report.study_tables import (
     floor_progress,
     interval_text,
     lambda_decision,
+    recorded_model_rule,
+    recording_rule,
     regime_map,
     row_intervals,
     size_effects,
@@ -27,6 +29,8 @@ from softflow.report.study_tables import (
 )
 from softflow.report.tables import BASELINES, LABELS, RF_FAMILY, markdown, our_table, read_result, read_sweep
 from softflow.studies import stats
+from softflow.studies.recorded import RECORDED
+from softflow.studies.recorded import cells as recorded_cells
 from softflow.studies.study import FLOOR
 from softflow.studies.table1 import TABLE1
 from softflow.studies.two_segment import TWO_SEGMENT
@@ -525,6 +529,63 @@ def two_segment_section(profile: Profile) -> list[str]:
     ]
 
 
+def recorded_summary(needed: pd.DataFrame, best: pd.DataFrame, computed: int, cells: int | None) -> str:
+    """One paragraph on the recorded study: per configuration and recording size, the better model
+    of recordings minus the better open-loop simulator-trained RF-FWD with its interval and verdict
+    (``recording_rule``), then per gap the best RF variant minus the best baseline
+    (``recorded_model_rule``) and whether friction changes the winner; whichever way they come
+    out, and how many cells they rest on."""
+    done = f"{computed} of the study's {cells} cells have rows" if cells else f"{computed} cells have rows"
+    if needed.empty and best.empty:
+        return (
+            f"On the twin's recordings no comparison has rows of both its sides yet ({done}; "
+            "`softflow sweep recorded --profile paper` computes the rest)."
+        )
+    sentences = []
+    if len(needed):
+        sizes = [
+            f"{gravity}, {runs} runs: {row.difference_mm:+.2f} mm [{row.low:+.2f}, {row.high:+.2f}] ({row.verdict})"
+            for (gravity, runs), row in needed.iterrows()
+        ]
+        sentences.append(
+            "Trained on the twin's recordings alone (motor commands in, the camera's tip out), the better of MLP "
+            "and RF minus the better of the simulator-trained RF-FWD open and open-calibrated, in shape RMSE through "
+            f"the camera under cable friction (mean [95 % bootstrap interval]): {'; '.join(sizes)}."
+        )
+    if len(best):
+        gaps = [
+            f"{gravity} under the {gap} gap {row.difference_mm:+.2f} mm [{row.low:+.2f}, {row.high:+.2f}] "
+            f"({LABELS.get(row.best_rf, row.best_rf)} against {LABELS.get(row.best_baseline, row.best_baseline)}: "
+            f"{row.verdict})"
+            for (gravity, gap), row in best.iterrows()
+        ]
+        changed = sorted({gravity for (gravity, _), row in best.iterrows() if row.friction_changes})
+        sentences.append(
+            f"Best RF variant minus best baseline on the most recording: {'; '.join(gaps)}; friction "
+            + (f"changes which model is best ({', '.join(changed)})." if changed else "changes no ranking.")
+        )
+    return " ".join(sentences) + f" ({done}.)"
+
+
+def recorded_section(profile: Profile) -> list[str]:
+    """Learning from recorded runs (notebook 13): how much recording a model needs to match the
+    simulator-trained RF-FWD on the twin, and whether friction changes the best model."""
+    try:
+        rows = read_sweep(profile, "recorded")
+    except ValueError:  # not run in this profile yet
+        rows = pd.DataFrame(columns=["key"])
+    needed, best = recording_rule(rows), recorded_model_rule(rows)
+    cells = len(recorded_cells(profile.name)) if profile.name in RECORDED else None
+    return [
+        "## Learning from recorded runs (notebook 13)",
+        "",
+        recorded_summary(needed, best, rows["key"].nunique(), cells),
+        "",
+        *([markdown(needed), ""] if len(needed) else []),
+        *([markdown(best), ""] if len(best) else []),
+    ]
+
+
 def results_page(profile: Profile, tables: dict, run_dir: Path) -> str:
     """docs/results.md: machine, commit, wall times, Tables I-IV, the paper's claims, key figures."""
     times = notebook_wall_times(run_dir)
@@ -562,6 +623,7 @@ def results_page(profile: Profile, tables: dict, run_dir: Path) -> str:
     lines += where_flows_win_section(profile)
     lines += consistency_weight_section(profile)
     lines += two_segment_section(profile)
+    lines += recorded_section(profile)
     lines += ["## The paper's claims, reproduced or not", "", markdown(claims(profile)), ""]
     lines += design_choices(profile)
     lines += ["## Key figures", ""]
