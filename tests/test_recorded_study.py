@@ -313,3 +313,21 @@ def test_the_results_paragraph_says_each_verdict_whichever_way_and_on_how_many_c
     assert paragraph.endswith("(7 of the study's 78 cells have rows.)")
     nothing = page.recorded_summary(pd.DataFrame(), pd.DataFrame(), 0, 78)
     assert "no comparison has rows of both its sides yet (0 of the study's 78 cells" in nothing
+
+
+def test_the_spread_table_gives_each_training_set_its_ratio_to_the_floor():
+    rows = pd.DataFrame(
+        [
+            dict(gravity="vertical", gap=gap, trained_on=on, runs=n, conditional_spread=s, conditional_spread_floor=f)
+            for gap, on, n, s, f in [
+                ("friction", "recordings", 60, 0.30, 0.20),
+                ("friction", "recordings", 60, 0.30, 0.20),  # another model on the same recordings
+                ("typical", "recordings", 60, 0.21, 0.20),
+                ("friction", "simulator", np.nan, np.nan, np.nan),  # no training set of its own
+            ]
+        ]
+    )
+    spread = study_tables.recorded_spread(rows)
+    assert list(spread.index) == [("vertical", "friction", 60), ("vertical", "typical", 60)]
+    np.testing.assert_allclose(spread["spread / floor"], [1.5, 1.05])
+    assert study_tables.recorded_spread(rows.iloc[3:]).empty

@@ -336,12 +336,20 @@ def two_segment_spread(rows: pd.DataFrame) -> pd.DataFrame:
     """Per observation of the models' data: the conditional spread of u given (x_t, x_t+1) over
     the training transitions (N, all inputs together), its estimator floor and their ratio (1:
     no ambiguity measurable), as the study's rows carry them (one dataset per observation)."""
-    columns = ["conditional_spread", "conditional_spread_floor"]
-    measured = rows.dropna(subset=columns) if len(rows) and set(columns) <= set(rows) else pd.DataFrame()
+    table = _spread_table(rows, ["observation"])
+    return table.sort_index(key=lambda level: level.map(_RANKS["observation"])) if len(table) else table
+
+
+SPREAD = ["conditional_spread", "conditional_spread_floor"]
+
+
+def _spread_table(rows: pd.DataFrame, by: list) -> pd.DataFrame:
+    """The conditional spread and its floor per ``by`` (one dataset each), and their ratio."""
+    measured = rows.dropna(subset=SPREAD) if len(rows) and set(SPREAD) <= set(rows) else pd.DataFrame()
     if measured.empty:
-        return pd.DataFrame(columns=[*columns, "spread / floor"]).rename_axis("observation")
-    table = measured.groupby("observation", sort=False)[columns].mean()
-    table = table.sort_index(key=lambda level: level.map(_RANKS["observation"]))
+        empty = pd.DataFrame(columns=[*by, *SPREAD, "spread / floor"])
+        return empty.set_index(by)
+    table = measured.groupby(by, sort=False)[SPREAD].mean()
     return table.assign(**{"spread / floor": table["conditional_spread"] / table["conditional_spread_floor"]})
 
 
@@ -406,6 +414,14 @@ def recorded_conditions(rows: pd.DataFrame) -> pd.Series:
         for gap, trained_on, n, mode in zip(rows["gap"], rows["trained_on"], runs, rows["mode"])
     ]
     return pd.Series(learned, index=rows.index, name="condition")
+
+
+def recorded_spread(rows: pd.DataFrame) -> pd.DataFrame:
+    """Does friction make the inverse many-valued? Per configuration, gap and recording size: the
+    conditional spread of the motor commands given (x_t, x_t+1) over the training transitions, its
+    estimator floor and their ratio (1: no ambiguity measurable), as the training cells carry them."""
+    learned = rows[rows["trained_on"] == "recordings"] if len(rows) else rows
+    return _spread_table(learned, ["gravity", "gap", "runs"])
 
 
 def recorded_table(rows: pd.DataFrame) -> pd.DataFrame:
