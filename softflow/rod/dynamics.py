@@ -259,15 +259,16 @@ class Simulator:
         half step; the convective force predicted with qd, then corrected once with the
         mean velocity of the step (keeps it second order and the energy balance tight)."""
         q_half = q + 0.5 * h * qd
-        here, *predicted = self.kinematics.frames_along(q_half, qd, _CONVECTIVE_STEP)  # one call: 3 frames
+        here, *along = self.kinematics.frames_along(q_half, qd, _CONVECTIVE_STEP)  # one call: 3 frames
         f, Jp, M, G = self._dynamics_terms(q_half, here)
         K, D = self.stiffness, self.damping_matrix
         implicit = 0.5 * h * D + 0.25 * h * h * K
         lhs = M + implicit
         known = np.einsum("bij,bj->bi", M, qd) - rowwise(qd, implicit.T) + h * (force + G - rowwise(q, K.T))
         qd_next = qd
-        for along in (predicted, None):  # predictor (along qd), corrector (along the step's mean velocity)
-            along = along or self.kinematics.positions_along(q_half, 0.5 * (qd + qd_next), _CONVECTIVE_STEP)
+        for corrector in (False, True):  # predictor (along qd), corrector (along the step's mean velocity)
+            if corrector:
+                along = self.kinematics.positions_along(q_half, 0.5 * (qd + qd_next), _CONVECTIVE_STEP)
             c = self._convective_force(Jp, f["positions"], along)
             qd_next = np.linalg.solve(lhs, (known - h * c)[..., None])[..., 0]
         return q + 0.5 * h * (qd + qd_next), qd_next
