@@ -28,12 +28,12 @@ $(STAMP): environment.lock pyproject.toml
 
 NBVAL := --nbval --nbval-current-env --nbval-sanitize-with tests/nbval_sanitize.cfg
 # make test runs two lanes side by side on the two cores, then the notebook that reads every
-# result: the unit tests with notebooks 06, 09 and 10 (10 closes the loop on 06's twin models;
-# 09 balances the lanes), and the other notebooks in order (04 reads 03's results, 08 03's and
-# 04's; 13, last, finds the twin's dataset 06 made). One
+# result: the unit tests with the twin's notebooks (06; 10 closes the loop on 06's twin models,
+# 13 reuses its dataset), and the other notebooks in order (04 reads 03's results, 08 03's and
+# 04's, 11 09's fwd_lambda rows). One
 # BLAS thread per lane: two lanes of two threads each spin against each other on two cores.
 LAST := notebooks/07_comparison_tables.ipynb
-LANE_A := notebooks/06_hardware_replay.ipynb notebooks/09_where_flows_win.ipynb notebooks/10_closed_loop.ipynb
+LANE_A := notebooks/06_hardware_replay.ipynb notebooks/10_closed_loop.ipynb notebooks/13_recorded_runs.ipynb
 LANE_B := $(filter-out $(LANE_A) $(LAST),$(NOTEBOOKS))
 test: export OMP_NUM_THREADS = 1
 test: export OPENBLAS_NUM_THREADS = 1
