@@ -53,11 +53,14 @@ def table1_ci(rows: pd.DataFrame, families=("shape", "random")) -> pd.DataFrame:
     for family in families:
         summary = with_ci(rows, "rmse_mm", family)
         columns[f"{family}_mm"] = interval_text(summary)
-        columns[f"{family}_seeds x refs"] = pd.Series(
-            [f"{r.seeds:.0f} x {r.references:.0f}" for r in summary.itertuples()], index=summary.index
-        )
+        columns[f"{family}_seeds x refs"] = _seeds_by_references(summary)
     table = pd.DataFrame(columns)
     return table.reindex(table_order(table.index)).rename_axis("model")
+
+
+def _seeds_by_references(summary: pd.DataFrame) -> pd.Series:
+    """ "seeds x references" behind each row of a ``with_ci`` summary."""
+    return pd.Series([f"{r.seeds:.0f} x {r.references:.0f}" for r in summary.itertuples()], index=summary.index)
 
 
 def compare(rows: pd.DataFrame, model: str, other: str, family: str, value: str = "rmse_mm"):
@@ -440,9 +443,7 @@ def recorded_table(rows: pd.DataFrame) -> pd.DataFrame:
             camera, true = (with_ci(part, value, family) for value in ("rmse_mm", "rmse_true_mm"))
             columns[f"{family}_mm"] = interval_text(camera)
             columns[f"{family}_true_mm"] = interval_text(true)
-            columns[f"{family}_seeds x refs"] = pd.Series(
-                [f"{r.seeds:.0f} x {r.references:.0f}" for r in camera.itertuples()], index=camera.index
-            )
+            columns[f"{family}_seeds x refs"] = _seeds_by_references(camera)
         parts[(gravity, condition)] = pd.DataFrame(columns)
     return pd.concat(parts, names=index)
 
