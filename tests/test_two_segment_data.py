@@ -8,7 +8,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from softflow import control, data, training
+from softflow import control, data, store, training
 from softflow.control import floor
 from softflow.control.planning import evaluate_many
 from softflow.data import dataset as dataset_module
@@ -163,6 +163,28 @@ def test_the_3d_paths_deepest_points_are_reached_and_the_one_segment_rod_cannot_
     np.testing.assert_allclose(sim.inverse_static(target), deep.u, rtol=0, atol=1e-8)
     with pytest.raises(ValueError, match="the 3-D path leaves the static workspace of 'sim': its nearest"):
         references.depth_circle_reference(Simulator(SIM_ROBOT))
+
+
+def shipped_references(sim, kind, build):
+    """The committed copy (``cache/``) of a cached_references entry, by today's key; None if absent."""
+    spec = dict(simulator=sim.spec(), kind=kind, build=build.__name__, version=references.REFERENCE_VERSION)
+    return store.read_npz(store.cache_file(store.SHIPPED_CACHE, f"references-{kind}", spec))
+
+
+def test_the_shipped_references_are_what_their_key_computes(sim):
+    """The study's shapes and 3-D paths and the ci grid's random references are committed under
+    today's key (minutes of least-norm static solves a fresh clone's notebook 12 skips); samples of
+    the shipped circle are the least-norm lift of their y-z, tip and middle disk."""
+    grid = two_segment.TWO_SEGMENT
+    builds = {f"two-segment-{name}": two_segment._shape(name) for name in grid["paper"]["shapes"]}
+    builds |= {f"two-segment-path3d-{a}": two_segment._path(a) for a in references.PATH3D_STARTS}
+    builds[f"two-segment-random-{grid['ci']['n_random']}"] = two_segment._random(grid["ci"]["n_random"])
+    assert [kind for kind, build in builds.items() if shipped_references(sim, kind, build) is None] == []
+    circle = shipped_references(sim, "two-segment-circle", builds["two-segment-circle"])
+    samples = circle["states_0"][np.flatnonzero(circle["mask_0"])[::200]]  # (K, 12): tip, disk, their velocities
+    lift = references.least_norm_lift(sim, samples[:, 1:3])
+    np.testing.assert_allclose(lift.positions[:, 1], samples[:, :3], rtol=0, atol=1e-8)  # this CPU's last bits
+    np.testing.assert_allclose(lift.positions[:, 0], samples[:, 3:6], rtol=0, atol=1e-8)
 
 
 def test_the_floor_learns_with_four_inputs(sim):
