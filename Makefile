@@ -28,19 +28,21 @@ $(STAMP): environment.lock pyproject.toml
 
 NBVAL := --nbval --nbval-current-env --nbval-sanitize-with tests/nbval_sanitize.cfg
 # make test runs two lanes side by side on the two cores, then the notebook that reads every
-# result: the unit tests with the twin's notebooks (06; 10 closes the loop on 06's twin models,
+# result: most unit tests with the twin's notebooks (06; 10 closes the loop on 06's twin models,
 # 13 reuses its dataset), and the other notebooks in order (04 reads 03's results, 08 03's and
-# 04's, 11 09's fwd_lambda rows). One
+# 04's, 11 09's fwd_lambda rows) with the unit tests of TESTS_B, which even the lanes' times
+# (figures/bench/notebooks.csv). One
 # BLAS thread per lane: two lanes of two threads each spin against each other on two cores.
 LAST := notebooks/07_comparison_tables.ipynb
 LANE_A := notebooks/06_hardware_replay.ipynb notebooks/10_closed_loop.ipynb notebooks/13_recorded_runs.ipynb
 LANE_B := $(filter-out $(LANE_A) $(LAST),$(NOTEBOOKS))
+TESTS_B := tests/test_recorded_study.py tests/test_friction.py
 test: export OMP_NUM_THREADS = 1
 test: export OPENBLAS_NUM_THREADS = 1
 test: $(STAMP) lint
 	mkdir -p build
-	$(PY) -m pytest $(LANE_B) $(NBVAL) -p no:cacheprovider > build/lane-b.log 2>&1 & \
-	$(PY) -m pytest tests $(LANE_A) $(NBVAL); a=$$?; \
+	$(PY) -m pytest $(LANE_B) $(TESTS_B) $(NBVAL) -p no:cacheprovider > build/lane-b.log 2>&1 & \
+	$(PY) -m pytest tests $(addprefix --ignore=,$(TESTS_B)) $(LANE_A) $(NBVAL); a=$$?; \
 	wait $$!; b=$$?; cat build/lane-b.log; \
 	$(PY) -m pytest $(LAST) $(NBVAL) -p no:cacheprovider; last=$$?; \
 	exit $$(( a || b || last ))
