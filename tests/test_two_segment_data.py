@@ -4,6 +4,7 @@ least-norm equilibrium, its 3-D paths are reachable where the one-segment rod's 
 the paper's one-segment datasets stay exactly what they were."""
 
 import dataclasses
+import warnings
 
 import numpy as np
 import pytest
@@ -210,15 +211,31 @@ def test_the_floor_start_runs_linear_over_a_step_whose_least_norm_fit_does_not_c
     np.testing.assert_allclose(sim.static_tip(start[[0, 19]])[:, 1:], states[[1, 20], 1:3], atol=1e-9)
 
 
+@pytest.mark.parametrize("profile", ["ci", "paper"])
+def test_the_rods_own_budget_is_the_one_its_study_trains_with(profile):
+    """So the study's seed-0 models, shipped, are what load_controller and `softflow train
+    --robot two` look for; every other rod keeps its profile's per-model budgets."""
+    study = two_segment._budget(profile)
+    for model in ("mlp", "lstm", "transformer", "rf", "rf-fwd", "forward"):
+        assert get_profile(profile).train_config(model, TWO_SEGMENT_ROD.name) == study.train_config(model)
+        assert get_profile(profile).train_config(model, SIM_ROBOT.name) == get_profile(profile).train_config(model)
+    assert study.train_config("mlp") == study.train_config("lstm")  # one budget for every model
+
+
 def test_a_two_segment_model_loads_plans_and_steps(tiny, sim, tmp_path, monkeypatch):
-    """load_controller finds a model trained on the rod's data by its profile's identity; a model of
-    the tip and the middle disk plans a tip+disk reference and refuses one in millimetres."""
+    """A model of the rod is trained with the rod's own budget (``Profile.rod_train``, as its study
+    trains them) and load_controller finds it current by that identity; a model of the tip and the
+    middle disk plans a tip+disk reference and refuses one in millimetres."""
     monkeypatch.setattr(checkpoints, "TRAINED", tmp_path / "trained")
-    monkeypatch.setitem(PROFILES, "ci", dataclasses.replace(FEW, name="ci", train=QUICK))
+    rods_own = (("two", dataclasses.replace(QUICK, epochs=1)),)
+    monkeypatch.setitem(PROFILES, "ci", dataclasses.replace(FEW, name="ci", train=QUICK, rod_train=rods_own))
     profile = get_profile("ci")
     dataset = data.load_dataset(profile, TWO_SEGMENT_ROD, data_dir=tmp_path / "data", progress=False)
-    training.ensure_trained("mlp", profile, dataset, TWO_SEGMENT_ROD)
-    controller = control.load_controller("mlp", "ci", TWO_SEGMENT_ROD)
+    _, checkpoint = training.ensure_trained("mlp", profile, dataset, TWO_SEGMENT_ROD)
+    assert checkpoint["epochs_run"] == 1
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # current: no staleness warning
+        controller = control.load_controller("mlp", "ci", TWO_SEGMENT_ROD)
     assert controller.plan(dataset.states[0]).shape == (30, 4)
 
     both = tiny["tip+disk"]

@@ -262,10 +262,11 @@ def find_trained(
     instead of a rod (its folder is named by the Dataset's key). (None, False) when there is none."""
     P = get_profile(profile)
     if recordings is not None:
-        data_key, rod = recordings.key, recordings.key
+        data_key, rod, budget = recordings.key, recordings.key, P.train_config(name)
     else:
         data_key, rod = dataset_path(P, robot, gravity).stem, rod_folder(robot, gravity)
-    wanted = identity(name, model_kwargs, P.train_config(name), data_key)
+        budget = P.train_config(name, robot.name)
+    wanted = identity(name, model_kwargs, budget, data_key)
     return find_checkpoint(name, profile, wanted, rod, model_kwargs)
 
 

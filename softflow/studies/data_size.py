@@ -7,7 +7,7 @@ from pathlib import Path
 
 from softflow import data, training
 from softflow.control.planning import Controller, evaluate
-from softflow.profiles import TrainConfig, get_profile
+from softflow.profiles import FIXED_BUDGET, get_profile
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import SIM_ROBOT
 from softflow.studies.study import held_out_plan, trained, unnamed
@@ -18,13 +18,13 @@ DATA_SIZE = {
         sizes=(50, 200),
         models=("mlp", "mlp-physical"),
         seeds=(0,),
-        train=TrainConfig(epochs=3, steps_per_epoch=100, batch_size=256, warmup_steps=20, val_samples=2000, patience=3),
+        train=FIXED_BUDGET["ci"],
     ),
     "paper": dict(
         sizes=(100, 300, 1000, 3000),
         models=("mlp", "mlp-physical", "rf", "rf-physical"),
         seeds=(0, 1, 2),
-        train=TrainConfig(epochs=40, steps_per_epoch=500, patience=40),
+        train=FIXED_BUDGET["paper"],
     ),  # 20 000 steps, no early stop
 }
 

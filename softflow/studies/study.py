@@ -60,7 +60,7 @@ def trained(name: str, profile: Profile, model_kwargs: dict | None = None, seed:
 def fixed_budget(profile_name: str, train) -> Profile:
     """The profile with one fixed training budget for every model, RF-FWD's surrogate too: the
     studies that compare models at equal optimiser steps (ambiguity, two_segment, recorded)."""
-    return replace(get_profile(profile_name), train=train, per_step_train=train)
+    return replace(get_profile(profile_name), train=train, per_step_train=train, rod_train=())
 
 
 def floor_rows(sim: Simulator, references, iterations: int, start_q=None):

@@ -290,7 +290,7 @@ def ensure_trained(
         raise ValueError("only models of the simulated rods ship; a model of recorded runs cannot (ship=False)")
     rod = rod_folder(robot, gravity) if robot is not None else dataset.key
     path = checkpoint_path(name, profile.name, rod, model_kwargs, seed=seed, shipped=ship, root=root)
-    config = replace(profile.train_config(name), seed=seed)
+    config = replace(profile.train_config(name, getattr(robot, "name", None)), seed=seed)
     if profile.name == "paper" and not ship and seed == 0:
         shipped = checkpoint_path(name, profile.name, rod, model_kwargs, shipped=True)
         if shipped.exists():
