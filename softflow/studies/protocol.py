@@ -113,7 +113,7 @@ PROTOCOLS = {  # condition -> the protocol it scores with; "table1" is Table I's
     **{f"speed-{v:g}": Protocol(speed=v) for v in (0.3, 0.5, 0.75, 1.0, 1.5)},
 }
 PROTOCOL_GRID = {
-    "ci": dict(conditions=("table1", "zero-velocity", "z-fresh", "speed-0.5"), ilc_iterations=4),
+    "ci": dict(conditions=("table1", "zero-velocity", "z-fresh", "speed-0.5"), ilc_iterations=2),
     "paper": dict(conditions=tuple(PROTOCOLS), ilc_iterations=15),  # shapes settle within 10 trials
 }
 WITH_RANDOM = ("table1", "z-seeded", "z-fresh")  # conditions that change something on Rand1..Rand4

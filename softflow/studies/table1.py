@@ -19,7 +19,7 @@ from softflow.rod.robots import SIM_ROBOT
 from softflow.studies.study import FLOOR, floor_rows, trained, unnamed
 
 TABLE1 = {  # per profile: the grid, and the references it is scored on
-    "ci": dict(models=("mlp", "rf"), seeds=(0, 1), shapes=("circle", "char_S"), n_random=4, ilc_iterations=8),
+    "ci": dict(models=("mlp", "rf"), seeds=(0, 1), shapes=("circle", "char_S"), n_random=4, ilc_iterations=4),
     "paper": dict(
         models=("mlp", "lstm", "transformer", "rf", "rf-physical", "rf-fwd"),
         seeds=(0, 1, 2),
