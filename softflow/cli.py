@@ -33,9 +33,9 @@ from softflow.models.registry import CONTROLLERS, MODELS
 from softflow.profiles import PROFILES, get_profile
 from softflow.report import model_cards, tables
 from softflow.rod.dynamics import GRAVITY_DIRECTIONS, Simulator
-from softflow.rod.robots import HW_ROBOT, ROBOTS, SIM_ROBOT, rod_folder
+from softflow.rod.robots import HW_ROBOT, ROBOTS, SIM_ROBOT, TWO_SEGMENT_ROD, rod_folder
 from softflow.store import write_text
-from softflow.studies import sweep
+from softflow.studies import sweep, two_segment
 
 # The rod's references for `evaluate`: the sim rod's are Table I's (8 shapes, Rand1..Rand4), the
 # hardware rod's Table III's shapes (5 cm about its rest tip) and Rand1..Rand4 run on it.
@@ -307,6 +307,8 @@ def reference_set(sim: Simulator, which: str) -> list:
             "random": lambda: data.cached_references(sim, "random", data.random_references),
         }
         return [r for family in families for r in made[family]()]
+    if sim.robot == TWO_SEGMENT_ROD:  # its study's references: the least-norm lift, four-input random draws
+        return [r for r in two_segment.references(sim, "paper") if r.family in families]
     return [r for r in data.evaluation_references(sim) if r.family in families]
 
 
@@ -338,6 +340,7 @@ def _export(args):
 
 def _evaluate(args):
     controller, sim = _controller(args)
+    controller.workspace_margin = None  # the package's own references: extrapolation is scored, as in the studies
     references = reference_set(sim, args.references)
     results, _ = control.evaluate(controller, references, sim)
     means = results.groupby("family", sort=False).rmse_mm.mean().reset_index().assign(reference="mean")

@@ -16,9 +16,9 @@ from softflow.models.registry import resolved_kwargs
 from softflow.profiles import Profile, TrainConfig
 from softflow.rod import rod_folder
 from softflow.rod.dynamics import Simulator
-from softflow.rod.robots import HW_ROBOT, SIM_ROBOT
+from softflow.rod.robots import HW_ROBOT, SIM_ROBOT, TWO_SEGMENT_ROD
 
-RODS = [(SIM_ROBOT, "vertical"), (HW_ROBOT, "vertical"), (HW_ROBOT, "horizontal")]
+RODS = [(SIM_ROBOT, "vertical"), (HW_ROBOT, "vertical"), (HW_ROBOT, "horizontal"), (TWO_SEGMENT_ROD, "vertical")]
 TINY = TrainConfig(epochs=1, steps_per_epoch=5, batch_size=32, warmup_steps=2, val_samples=100, patience=1)
 
 
@@ -44,12 +44,11 @@ def rod_of(path):
 
 
 @functools.cache
-def circle_start(robot, gravity):
-    """The first 40 states (0.4 s) of a 50 mm circle about the rod's rest tip: one static lift
-    per rod, shared by its checkpoints."""
-    sim = Simulator(robot, gravity)
-    rest = sim.tip_positions(sim.rest_q()[None])[0, 1:]
-    return data.shape_reference(sim, "circle", size=0.05, centre=rest).states[:40]
+def gentle_motion(robot, gravity):
+    """0.4 s of the rod from rest under a slow ramp of every input to 1 N (40 states): a
+    reference each of its models can plan, one short rollout per rod."""
+    ramp = np.linspace(0.0, 1.0, 39)[None, :, None] * np.ones(robot.n_inputs)  # (1, 39, m) N
+    return Simulator(robot, gravity).rollout(ramp)[0]
 
 
 @pytest.mark.parametrize("path", shipped_files(), ids=lambda p: str(p.relative_to(checkpoints.SHIPPED)))
@@ -62,7 +61,7 @@ def test_every_shipped_checkpoint_is_current_and_plans(path):
     assert control.find_trained(name, "paper", robot, gravity, variant) == (path, True)
     if name == "forward":
         return
-    reference = circle_start(robot, gravity)
+    reference = gentle_motion(robot, gravity)
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # no staleness warning, no saturation
         controller = (
@@ -73,7 +72,7 @@ def test_every_shipped_checkpoint_is_current_and_plans(path):
             )
         )
         u = controller.plan(reference)
-    assert u.shape == (39, 2) and np.isfinite(u).all()
+    assert u.shape == (39, robot.n_inputs) and np.isfinite(u).all()
 
 
 def test_a_calibrated_rod_with_a_shipped_name_trains_outside_checkpoints(tmp_path, monkeypatch):
@@ -141,3 +140,23 @@ def test_a_checkpoint_carrying_a_pickled_object_is_refused(tmp_path, capsys):
     plain = tmp_path / "plain.pt"
     checkpoints.save_checkpoint({"name": "mlp", "model_kwargs": {}, "model": {"w": torch.ones(2)}}, plain)
     assert checkpoints.load_checkpoint(plain)["model"]["w"].tolist() == [1.0, 1.0]
+
+
+def test_the_two_segment_study_ships_its_seed_0_models_and_never_overwrites(tmp_path, monkeypatch):
+    from softflow.studies import two_segment
+
+    monkeypatch.setattr(checkpoints, "SHIPPED", tmp_path / "shipped")
+    rod = rod_folder(TWO_SEGMENT_ROD, "vertical")
+    trained = checkpoints.checkpoint_path("mlp", "paper", rod, root=tmp_path / "study" / "models" / "paper" / "tip")
+    trained.parent.mkdir(parents=True)
+    trained.write_bytes(b"weights of seed 0")
+    checkpoints.checkpoint_path("mlp", "paper", rod, seed=1, root=trained.parent.parent).write_bytes(b"seed 1")
+    shipped = two_segment.ship_models(tmp_path / "study")  # every model the study has trained so far
+    assert shipped == [tmp_path / "shipped" / rod / "mlp.pt"] and shipped[0].read_bytes() == b"weights of seed 0"
+    assert two_segment.ship_models(tmp_path / "study", ["mlp"]) == shipped  # the same bytes again: nothing lost
+    trained.write_bytes(b"retrained")
+    with pytest.raises(ValueError, match="is shipped and differs"):
+        two_segment.ship_models(tmp_path / "study", ["mlp"])
+    assert shipped[0].read_bytes() == b"weights of seed 0"
+    with pytest.raises(ValueError, match="no seed-0 'forward' of the study"):
+        two_segment.ship_models(tmp_path / "study", ["rf-fwd"])  # its surrogate first: not trained either

@@ -27,10 +27,11 @@ from softflow.data.references import (
     shape_reference,
 )
 from softflow.models.checkpoints import checkpoint_path
+from softflow.models.registry import model_spec
 from softflow.profiles import PROFILES
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import TWO_SEGMENT_ROD, rod_folder
-from softflow.store import cache_file, cached_arrays
+from softflow.store import atomic_write, cache_file, cached_arrays
 from softflow.studies import ambiguity
 from softflow.studies.data_size import DATA_SIZE
 from softflow.studies.study import FLOOR, fixed_budget, floor_rows, held_out_plan, trained, unnamed
@@ -217,6 +218,30 @@ def trained_controllers(workdir: Path, profile_name: str, observation: str, mode
             controller.workspace_margin = None
             controllers.append(controller)
     return controllers
+
+
+def ship_models(workdir: Path, models=None) -> list[Path]:
+    """Copy the study's seed-0 paper models of the tip (``models``: names, default every one
+    trained so far, with RF-FWD's surrogate) from ``workdir`` (the sweep's folder of this study)
+    into checkpoints/, where ``load_controller(name, robot=TWO_SEGMENT_ROD)`` finds them current
+    (``Profile.rod_train``). A shipped file is never overwritten: one that differs is a
+    ValueError. Returns the shipped paths."""
+    root, rod = _models_root(workdir, "paper", "tip"), rod_folder(TWO_SEGMENT_ROD, GRAVITY)
+    names = TWO_SEGMENT["paper"]["models"]["tip"] if models is None else models
+    shipped = []
+    for name in dict.fromkeys(n for model in names for n in (*model_spec(model).requires, model)):
+        source = checkpoint_path(name, "paper", rod, root=root)
+        if models is None and not source.is_file():
+            continue
+        if not source.is_file():
+            raise ValueError(f"no seed-0 {name!r} of the study in {source.parent}; run its cell first")
+        target = checkpoint_path(name, "paper", rod, shipped=True)
+        if target.exists() and target.read_bytes() != source.read_bytes():
+            raise ValueError(f"{target} is shipped and differs from {source}: remove it by hand to ship again")
+        with atomic_write(target) as f:
+            f.write(source.read_bytes())
+        shipped.append(target)
+    return shipped
 
 
 def _models_root(workdir: Path, profile_name: str, observation: str) -> Path:
