@@ -41,7 +41,7 @@ FLOOR_OBSERVATION = "simulator"  # the floor's cell: it learns on the true simul
 
 TWO_SEGMENT = {  # per profile: the data, the grid and the references
     "ci": dict(
-        data=PROFILES["ci"],
+        data=replace(PROFILES["ci"], n_episodes=64),  # the four-input rollouts were most of notebook 12's ci run
         models={"tip": ("mlp", "rf")},
         seeds=(0,),
         ilc_iterations=0,  # no floor
