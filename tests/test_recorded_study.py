@@ -47,6 +47,7 @@ CI_CELLS = [
         dropped=0.0,
     )
 ]
+RUN_SECONDS = 1.0  # the in-process study's recorded runs (the ci grid's are 2 s)
 TRACKING = ["reference", "family", "rmse_mm", "rmse_true_mm", "clipped", "cell_seconds"]
 TRAINING = ["u_rmse_test", "conditional_spread", "conditional_spread_floor", "best_val", "epochs_run", "train_minutes"]
 FLOW = ["u_rmse_draw", "u_rmse_mean_of_draws", "draw_spread", "spread_error_spearman"]
@@ -99,14 +100,16 @@ def test_the_paper_grid_is_the_pre_registered_one():
 @pytest.fixture(scope="module")
 def swept(tmp_path_factory):
     """The ci study run in this process. The twin's RF-FWD is trained with the ci budget on 12
-    ci episodes instead of 200 (simulating those took 69 of the study's 160 CPU-s; the cell's
-    other steps are what is tested here)."""
+    ci episodes instead of 200 (simulating those took 69 of the study's 160 CPU-s), and the runs
+    last 1 s instead of 2 (filming is most of the rest); the cell's other steps are what is
+    tested here."""
     root = tmp_path_factory.mktemp("sweeps")
     few = dataclasses.replace(PROFILES["ci"], n_episodes=12, episode_seconds=2.0)
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(recorded, "get_profile", lambda name: few if name == "ci" else PROFILES[name])
+        patch.setitem(recorded.RECORDED, "ci", {**recorded.RECORDED["ci"], "seconds": RUN_SECONDS})
         result = sweep.run_sweep("recorded", "ci", client=None, device="cpu", root=root, progress=False)
-    return result, root / "recorded"
+        yield result, root / "recorded"  # the tests read its rows, folders and models with the same grid
 
 
 def test_the_ci_study_gives_the_pre_registered_rows(swept):
@@ -122,7 +125,7 @@ def test_the_ci_study_gives_the_pre_registered_rows(swept):
     assert np.isfinite(learnt[TRACKING[2:] + TRAINING].to_numpy(float)).all()
     assert (learnt.epochs_run == 3).all() and (learnt.runs == 8).all()
     assert learnt[["train_runs", "val_runs", "held_out_runs"]].to_numpy().tolist() == [[7, 1, 4]] * 2
-    np.testing.assert_allclose(learnt.recorded_minutes, 16 / 60)
+    np.testing.assert_allclose(learnt.recorded_minutes, 8 * RUN_SECONDS / 60)
     assert learnt.conditional_spread.nunique() == 1  # one recording set, one spread
     flow = learnt[learnt.model == "rf"]
     assert np.isfinite(flow[FLOW].to_numpy(float)).all()
@@ -142,7 +145,7 @@ def test_the_runs_are_recorded_once_per_folder_under_the_sweep(swept):
     assert [len(list(f.glob("run*.csv"))) for f in folders] == [8, 4]
     for folder, seed in zip(folders, (0, 1)):
         settings = json.loads((folder / recorder.SETTINGS).read_text())
-        assert settings["seed"] == seed and settings["seconds"] == 2.0 and settings["gravity"] == "vertical"
+        assert settings["seed"] == seed and settings["seconds"] == RUN_SECONDS and settings["gravity"] == "vertical"
         assert settings["gap"] == hardware.FRICTION_GAP.parameters()
     stamps = {path: path.stat().st_mtime_ns for path in workdir.glob("recordings/ci/*/*")}
     recorded.record_grid("ci", workdir)  # the grid's folders, all there: nothing recorded again
@@ -158,7 +161,7 @@ def test_a_model_of_recordings_plans_motor_commands_within_the_recorded_range(sw
             cell, "ci", "cpu", workdir
         )  # found, not retrained
         assert checkpoint["epochs_run"] == 3
-        assert dataset.u.shape == (8, 200, 3) and held_out.u.shape == (4, 200, 3)  # l1..l3 in mm per 0.01 s
+        assert dataset.u.shape == (8, 100, 3) and held_out.u.shape == (4, 100, 3)  # l1..l3 in mm per 0.01 s
         (plan,), (clipped,) = recorded.plan_commands(model, cell["model"], checkpoint, circle)
         assert plan.shape == (circle[0].n_steps, HW_ROBOT.n_cables)
         seen = checkpoint["recorded"]  # what load_controller clips a model of recordings to
