@@ -201,8 +201,7 @@ def _results_lines(model: ShippedModel, results: dict) -> list[tuple[str, str]]:
             (
                 "two_segment sweep (figures/sweeps/two_segment-paper.csv: 8 shapes, 24 random, 3 3-D paths; "
                 "the tip observed), shape / random / 3-D paths",
-                f"this checkpoint (seed 0) {seed0['shape']:.2f} / {seed0['random']:.2f} / {seed0['path3d']:.2f} mm, "
-                f"{mine.seed.nunique()} of 3 training seeds in the study",
+                f"this checkpoint (seed 0) {seed0['shape']:.2f} / {seed0['random']:.2f} / {seed0['path3d']:.2f} mm",
             )
         )
     if model.paper_model and model.robot == HW_ROBOT and model.name == "rf-fwd":
