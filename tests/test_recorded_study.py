@@ -47,7 +47,7 @@ CI_CELLS = [
         dropped=0.0,
     )
 ]
-RUN_SECONDS = 1.0  # the in-process study's recorded runs (the ci grid's are 2 s)
+RUN_SECONDS = 1.0  # the ci grid's recorded runs
 TRACKING = ["reference", "family", "rmse_mm", "rmse_true_mm", "clipped", "cell_seconds"]
 TRAINING = ["u_rmse_test", "conditional_spread", "conditional_spread_floor", "best_val", "epochs_run", "train_minutes"]
 FLOW = ["u_rmse_draw", "u_rmse_mean_of_draws", "draw_spread", "spread_error_spearman"]
@@ -58,7 +58,7 @@ def test_the_ci_grid_is_the_pre_registered_one():
     seed 0 with data_size's ci budget, the ci profile's simulator-trained RF-FWD open; the circle."""
     assert recorded.cells("ci") == CI_CELLS
     grid = recorded.RECORDED["ci"]
-    assert grid["seconds"] == 2.0 and grid["held_out"] == 4 and list(grid["trained"]) == [("friction", 8)]
+    assert grid["seconds"] == 1.0 and grid["held_out"] == 4 and list(grid["trained"]) == [("friction", 8)]
     assert grid["train"] == TrainConfig(
         epochs=3, steps_per_epoch=100, batch_size=256, warmup_steps=20, val_samples=2000, patience=3
     )
@@ -100,16 +100,14 @@ def test_the_paper_grid_is_the_pre_registered_one():
 @pytest.fixture(scope="module")
 def swept(tmp_path_factory):
     """The ci study run in this process. The twin's RF-FWD is trained with the ci budget on 12
-    ci episodes instead of 200 (simulating those took 69 of the study's 160 CPU-s), and the runs
-    last 1 s instead of 2 (filming is most of the rest); the cell's other steps are what is
-    tested here."""
+    ci episodes instead of 200 (simulating those took 69 of the study's 160 CPU-s; the cell's
+    other steps are what is tested here)."""
     root = tmp_path_factory.mktemp("sweeps")
     few = dataclasses.replace(PROFILES["ci"], n_episodes=12, episode_seconds=2.0)
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(recorded, "get_profile", lambda name: few if name == "ci" else PROFILES[name])
-        patch.setitem(recorded.RECORDED, "ci", {**recorded.RECORDED["ci"], "seconds": RUN_SECONDS})
         result = sweep.run_sweep("recorded", "ci", client=None, device="cpu", root=root, progress=False)
-        yield result, root / "recorded"  # the tests read its rows, folders and models with the same grid
+        yield result, root / "recorded"
 
 
 def test_the_ci_study_gives_the_pre_registered_rows(swept):

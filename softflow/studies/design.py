@@ -23,6 +23,11 @@ VARIANTS = {
 }
 
 
+# per profile, the Table I references a variant is scored on (None: all twelve); the ci run's
+# cost is its rollouts, whose length the longest reference sets
+REFERENCES = {"ci": ("circle", "char_S", "Rand1", "Rand2"), "paper": None}
+
+
 def cells(profile_name: str) -> list[dict]:
     return [dict(study="design", variant=variant, model=VARIANTS[variant][0], seed=0) for variant in VARIANTS]
 
@@ -34,14 +39,16 @@ def _short_budget(profile_name: str):
 
 def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> list[dict]:
     """One variant trained at the short budget (RF-FWD's surrogate too, shared by the variants'
-    cells) and scored open loop on the Table I references; one row per reference."""
+    cells) and scored open loop on the profile's Table I references; one row per reference."""
     profile, sim = _short_budget(profile_name), Simulator(SIM_ROBOT)
     name, kwargs = VARIANTS[cell["variant"]]
     dataset = data.load_dataset(profile, progress=False)
     model, checkpoint = training.ensure_trained(
         name, profile, dataset, model_kwargs=kwargs, root=workdir / "models" / profile_name, device=device
     )
-    results, _ = evaluate(Controller(model, name), evaluation_references(sim), sim)
+    names = REFERENCES[profile_name]
+    references = [r for r in evaluation_references(sim) if names is None or r.name in names]
+    results, _ = evaluate(Controller(model, name), references, sim)
     fitted = dict(best_val=float(checkpoint["best_val"]), epochs_run=int(checkpoint["epochs_run"]))
     return [unnamed(row, **fitted) for row in results.to_dict("records")]
 

@@ -42,7 +42,7 @@ MM = 1e-3  # m per unit of the motor columns (l1_mm, ...)
 RECORDED = {  # per profile: the recordings, the grid and the references
     "ci": dict(
         configs=("vertical",),
-        seconds=2.0,  # per run
+        seconds=1.0,  # per run
         held_out=4,  # runs, seed 1
         trained={("friction", 8): ("mlp", "rf")},  # (gap, runs trained on): models
         seeds=(0,),
