@@ -129,6 +129,23 @@ def test_conditional_spread_per_observation_against_its_floor(rows):
     np.testing.assert_allclose(spread["spread / floor"], [2.5, 1.25])
 
 
+def test_the_regime_map_places_each_observation_as_a_variant(rows):
+    """RF against the MLP per observation, as the ambiguity study's variants are: on the tip RF is
+    1 mm lower on every shape (both intervals exclude 0), no ranking on the random references;
+    tip+disk has no flow yet, so no row; the floor and the 3-D path never enter."""
+    variants = study_tables.two_segment_variants(rows)
+    assert set(variants.variant) == {"two segments, tip", "two segments, tip+disk"}
+    assert set(variants.family) == {"shape", "random"} and "ilc-floor" not in set(variants.model)
+    regimes = study_tables.regime_map(variants)
+    assert list(regimes.index) == [("two segments, tip", "rf")]
+    tip = regimes.loc[("two segments, tip", "rf")]
+    assert tip.conditional_spread == 0.5 and tip.spread_floor == 0.2
+    assert tip.shape_mm == pytest.approx(-1.0) and tip.shape_high < 0 and "lower" in tip.shape_verdict
+    assert tip.random_verdict.startswith("no ranking")
+    assert tip.step_N == pytest.approx(-0.1)
+    assert study_tables.two_segment_variants(rows.iloc[:0]).empty
+
+
 def test_an_empty_or_floor_only_sweep_gives_empty_tables(rows):
     for part in (pd.DataFrame(), rows[rows.model == "ilc-floor"]):
         assert study_tables.two_segment_differences(part).empty

@@ -25,6 +25,7 @@ from softflow.report.study_tables import (
     size_effects,
     table_order,
     two_segment_differences,
+    two_segment_variants,
     verdict_counts,
 )
 from softflow.report.tables import BASELINES, LABELS, RF_FAMILY, markdown, our_table, read_result, read_sweep
@@ -169,7 +170,7 @@ def ranking_rule_section(profile: Profile) -> list[str]:
     ranks beside the bootstrap alone (notebooks 08, 09, 11)."""
     tables = {
         "table1": best_against_best(read_sweep(profile, "table1")),
-        "ambiguity": regime_map(read_sweep(profile, "ambiguity")),
+        "ambiguity": regime_map(_regime_rows(profile)),
         "data_size": size_effects(read_sweep(profile, "data_size")),
         "fwd_lambda": lambda_decision(read_sweep(profile, "fwd_lambda"))[0],
     }
@@ -335,10 +336,21 @@ def _family_differences(frame: pd.DataFrame) -> dict:
     }
 
 
+def _regime_rows(profile: Profile) -> pd.DataFrame:
+    """The ambiguity study's rows and, as far as they are computed, the two_segment study's as two
+    more variants of the regime map (``two_segment_variants``)."""
+    rows = read_sweep(profile, "ambiguity")
+    try:
+        two_segments = read_sweep(profile, "two_segment")
+    except ValueError:  # not run in this profile yet
+        return rows
+    return pd.concat([rows, two_segment_variants(two_segments)], ignore_index=True)
+
+
 def where_flows_win_section(profile: Profile) -> list[str]:
     """The regime map with its paragraph, and what the prior and being generative each change
     with data size (notebook 09)."""
-    regimes = regime_map(read_sweep(profile, "ambiguity"))
+    regimes = regime_map(_regime_rows(profile))
     table = pd.DataFrame(
         {
             "spread / floor (N)": [

@@ -155,6 +155,17 @@ def per_step_table(rows: pd.DataFrame, by, values) -> pd.DataFrame:
     return per_model.groupby(list(by), sort=False)[list(values)].mean()
 
 
+def two_segment_variants(rows: pd.DataFrame) -> pd.DataFrame:
+    """The two_segment study's model rows as regime-map variants ("two segments, tip", "two
+    segments, tip+disk"): the same measures (conditional spread and its floor, z = 0 tracking on
+    shapes and random references, per-step u error) on a rod whose inverse is many-valued by
+    construction, beside the ambiguity study's variants; the floor and the 3-D paths left out."""
+    if rows.empty:
+        return rows
+    models = rows[(rows["model"] != FLOOR) & rows["family"].isin(["shape", "random"])]
+    return models.assign(variant="two segments, " + models["observation"])
+
+
 def regime_map(rows: pd.DataFrame) -> pd.DataFrame:
     """Per ambiguity variant: the conditional spread of u (and the estimator's floor) and each
     flow minus the MLP, z = 0 plans: tracking RMSE (mm) per family, paired over references
