@@ -267,6 +267,8 @@ def test_the_study_runs_in_process_and_scores_every_observation(sim, tmp_path, m
         train=QUICK,
     )
     monkeypatch.setitem(two_segment.TWO_SEGMENT, "ci", grid)
+    for module in (dataset_module, references):  # its dataset and references: never in the repository's data/
+        monkeypatch.setattr(module, "DATA_DIR", tmp_path / "data")
     result = sweep.run_sweep("two_segment", "ci", client=None, device="cpu", root=tmp_path, progress=False)
     assert result.failures == []
     rows = result.rows

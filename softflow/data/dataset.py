@@ -176,12 +176,12 @@ def _dataset_from(
 
 
 def dataset_path(
-    profile: Profile, robot: Robot = SIM_ROBOT, gravity: str = "vertical", data_dir: Path = DATA_DIR
+    profile: Profile, robot: Robot = SIM_ROBOT, gravity: str = "vertical", data_dir: Path | None = None
 ) -> Path:
-    """Where the profile's dataset is cached; the name changes with any number that made it
-    (the rod's parameters, not its name)."""
+    """Where the profile's dataset is cached (in ``data_dir``, default the cache root); the name
+    changes with any number that made it (the rod's parameters, not its name)."""
     spec = dict(**profile.data_spec, simulator=Simulator(robot, gravity=gravity).spec(), version=DATA_VERSION)
-    return cache_file(data_dir, f"dataset-{profile.name}", spec)
+    return cache_file(DATA_DIR if data_dir is None else data_dir, f"dataset-{profile.name}", spec)
 
 
 def load_dataset(
@@ -191,7 +191,7 @@ def load_dataset(
     *,
     observation: str = "tip",
     progress: bool = True,
-    data_dir: Path = DATA_DIR,
+    data_dir: Path | None = None,
 ) -> Dataset:
     """The profile's polynomial-excitation dataset (one polynomial per input of the rod), generated
     on first use and cached; its states as ``observation`` sees them ("tip", or "tip+disk" for a
