@@ -43,9 +43,9 @@ test: export OPENBLAS_NUM_THREADS = 1
 # step's allocation (up to a fifth of the CPU time in the statics went to the kernel); keeping
 # freed memory in the process instead saved 13 % of a static lift's and 7 % of the twin tests'
 # wall time here, bit for bit the same results.
-test reproduce study: export MALLOC_MMAP_THRESHOLD_ = 134217728
-test reproduce study: export MALLOC_TRIM_THRESHOLD_ = 536870912
-test reproduce study: export MALLOC_TOP_PAD_ = 67108864
+test reproduce study bench-setup: export MALLOC_MMAP_THRESHOLD_ = 134217728
+test reproduce study bench-setup: export MALLOC_TRIM_THRESHOLD_ = 536870912
+test reproduce study bench-setup: export MALLOC_TOP_PAD_ = 67108864
 test: $(STAMP) lint
 	mkdir -p build
 	$(PY) -m pytest $(LANE_B) $(TESTS_B) $(NBVAL) -p no:cacheprovider > build/lane-b.log 2>&1 & \
