@@ -24,9 +24,9 @@ from softflow import data, training
 from softflow.checks import as_real_array
 from softflow.control.planning import Controller, evaluate
 from softflow.data.variants import VARIANTS, variant_dataset
+from softflow.profiles import FIXED_BUDGET
 from softflow.rod.dynamics import Simulator
 from softflow.store import cache_file, cached_arrays
-from softflow.studies.data_size import DATA_SIZE
 from softflow.studies.study import fixed_budget, held_out_plan, trained, unnamed
 from softflow.studies.table1 import table1_references
 
@@ -80,7 +80,7 @@ AMBIGUITY = {
         seeds=(0,),
         episodes=60,
         draws=8,
-        train=DATA_SIZE["ci"]["train"],
+        train=FIXED_BUDGET["ci"],
     ),
     "paper": dict(
         variants=tuple(VARIANTS),
@@ -88,7 +88,7 @@ AMBIGUITY = {
         seeds=(0, 1, 2),
         episodes=1000,
         draws=16,
-        train=DATA_SIZE["paper"]["train"],
+        train=FIXED_BUDGET["paper"],
     ),
 }
 

@@ -20,13 +20,12 @@ from softflow.control.planning import Controller, recorded_range
 from softflow.data import recordings
 from softflow.data.references import Reference, hardware_references
 from softflow.hardware import recorder
-from softflow.profiles import get_profile
+from softflow.profiles import FIXED_BUDGET, get_profile
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import HW_ROBOT
 from softflow.store import content_key
 from softflow.studies import ambiguity
 from softflow.studies.closed_loop import CAMERA_LATENCY, learning_options, mode_options
-from softflow.studies.data_size import DATA_SIZE
 from softflow.studies.study import fixed_budget, trained
 
 GAPS = {"friction": hardware.FRICTION_GAP, "typical": hardware.TYPICAL_GAP}  # the cell's gap by name
@@ -49,7 +48,7 @@ RECORDED = {  # per profile: the recordings, the grid and the references
         simulator={"friction": ("open",)},  # gap: modes of the simulator-trained RF-FWD
         references=("circle",),
         draws=16,
-        train=DATA_SIZE["ci"]["train"],
+        train=FIXED_BUDGET["ci"],
     ),
     "paper": dict(
         configs=("vertical", "horizontal"),
@@ -65,7 +64,7 @@ RECORDED = {  # per profile: the recordings, the grid and the references
         simulator={"friction": SIMULATOR_MODES, "typical": SIMULATOR_MODES},
         references=None,  # all of hardware_references: Table III's shapes and the burst circle
         draws=16,
-        train=DATA_SIZE["paper"]["train"],  # 20 000 steps, no early stop
+        train=FIXED_BUDGET["paper"],  # 20 000 steps, no early stop
     ),
 }
 

@@ -28,12 +28,11 @@ from softflow.data.references import (
 )
 from softflow.models.checkpoints import checkpoint_path
 from softflow.models.registry import model_spec
-from softflow.profiles import PROFILES
+from softflow.profiles import FIXED_BUDGET, PROFILES
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import TWO_SEGMENT_ROD, rod_folder
 from softflow.store import atomic_write, cache_file, cached_arrays
 from softflow.studies import ambiguity
-from softflow.studies.data_size import DATA_SIZE
 from softflow.studies.study import FLOOR, fixed_budget, floor_rows, held_out_plan, trained, unnamed
 
 GRAVITY = "vertical"
@@ -50,7 +49,7 @@ TWO_SEGMENT = {  # per profile: the data, the grid and the references
         paths=1,
         draws=4,
         check_episodes=1,
-        train=DATA_SIZE["ci"]["train"],
+        train=FIXED_BUDGET["ci"],
     ),
     "paper": dict(
         data=PROFILES["paper"],
@@ -62,7 +61,7 @@ TWO_SEGMENT = {  # per profile: the data, the grid and the references
         paths=len(PATH3D_STARTS),
         draws=16,
         check_episodes=20,
-        train=DATA_SIZE["paper"]["train"],  # 20 000 steps, no early stop
+        train=FIXED_BUDGET["paper"],  # 20 000 steps, no early stop
     ),
 }
 
