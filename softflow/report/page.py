@@ -339,12 +339,16 @@ def _family_differences(frame: pd.DataFrame) -> dict:
 def _regime_rows(profile: Profile) -> pd.DataFrame:
     """The ambiguity study's rows and, as far as they are computed, the two_segment study's as two
     more variants of the regime map (``two_segment_variants``)."""
-    rows = read_sweep(profile, "ambiguity")
+    rows, two_segments = read_sweep(profile, "ambiguity"), two_segment_variants(_two_segment_rows(profile))
+    return pd.concat([rows, two_segments], ignore_index=True) if len(two_segments) else rows
+
+
+def _two_segment_rows(profile: Profile) -> pd.DataFrame:
+    """The two_segment study's rows as far as they are computed (none: an empty frame)."""
     try:
-        two_segments = read_sweep(profile, "two_segment")
+        return read_sweep(profile, "two_segment")
     except ValueError:  # not run in this profile yet
-        return rows
-    return pd.concat([rows, two_segment_variants(two_segments)], ignore_index=True)
+        return pd.DataFrame(columns=["key"])
 
 
 def where_flows_win_section(profile: Profile) -> list[str]:
@@ -523,10 +527,7 @@ def two_segment_summary(differences: pd.DataFrame, computed: int, cells: int | N
 def two_segment_section(profile: Profile) -> list[str]:
     """The redundant rod (notebook 12): whether the RF family beats the best regression when four
     inputs reach one tip, from the study's rows as far as they are computed."""
-    try:
-        rows = read_sweep(profile, "two_segment")
-    except ValueError:  # not run in this profile yet
-        rows = pd.DataFrame(columns=["key"])
+    rows = _two_segment_rows(profile)
     differences = two_segment_differences(rows)
     return [
         "## A two-segment rod: four inputs, one tip (notebook 12)",

@@ -234,11 +234,12 @@ def ship_models(workdir: Path, models=None) -> list[Path]:
             continue
         if not source.is_file():
             raise ValueError(f"no seed-0 {name!r} of the study in {source.parent}; run its cell first")
-        target = checkpoint_path(name, "paper", rod, shipped=True)
-        if target.exists() and target.read_bytes() != source.read_bytes():
+        target, weights = checkpoint_path(name, "paper", rod, shipped=True), source.read_bytes()
+        if not target.exists():
+            with atomic_write(target) as f:
+                f.write(weights)
+        elif target.read_bytes() != weights:
             raise ValueError(f"{target} is shipped and differs from {source}: remove it by hand to ship again")
-        with atomic_write(target) as f:
-            f.write(source.read_bytes())
         shipped.append(target)
     return shipped
 
