@@ -16,9 +16,16 @@ NOTEBOOKS := $(sort $(wildcard notebooks/[0-9]*.ipynb))
 
 venv: $(STAMP)
 
+# Every Python process of a run (each notebook's kernel, each pytest lane, Dask worker and CLI
+# call in the tests) imports torch, pandas, scipy and matplotlib. With PYTHONDONTWRITEBYTECODE set
+# (as on the machines this is developed and tested on) and no bytecode installed, each of them
+# compiled those from source again: about 10 CPU-s a process here. The targets write the bytecode
+# of what is imported, once.
+export PYTHONDONTWRITEBYTECODE :=
+
 # Rebuilt whenever the lock changes; a half-built venv never gets the stamp. --no-compile: Python
-# compiles a module when it is first imported, so the install does not compile the ones never used
-# (half the install's time).
+# compiles a module when it is first imported and keeps its bytecode (the export above), so the
+# install does not compile the ones never used (half the install's time).
 $(STAMP): environment.lock pyproject.toml
 	rm -rf $(VENV)
 	$(PYTHON_BASE) -m venv $(VENV)

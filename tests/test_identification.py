@@ -49,3 +49,34 @@ def test_a_study_identifies_each_rig_once_and_reads_the_same_fit_back(tmp_path, 
     again = studies.closed_loop.identified_twin(sim, hardware.TYPICAL_GAP, 3.0, tmp_path)
     other_gap = studies.closed_loop.identified_twin(sim, hardware.TYPICAL_GAP.doubled("slack"), 3.0, tmp_path)
     assert first == again == other_gap == fit and len(calls) == 2  # one run per gap, read back exactly
+
+
+def test_the_shipped_ci_identification_is_what_its_key_computes(tmp_path, monkeypatch):
+    """The ci closed_loop study's identification ships in cache/ (a fresh clone's notebook 06 and
+    make test skip its fit). It is found under today's key without fitting, it recovers the
+    typical gap roughly (1.5 s of camera frames), and replaying the fitted plant against the
+    twin's filmed run gives the error it reports."""
+    from softflow import studies
+    from softflow.profiles import PROFILES
+
+    def no_fit(*args, **kwargs):
+        raise AssertionError("the shipped identification was not found under today's key")
+
+    monkeypatch.setattr(identification, "identify_twin", no_fit)
+    sim, gap, seconds = Simulator(HW_ROBOT, "vertical"), hardware.TYPICAL_GAP, PROFILES["ci"].identification_seconds
+    fit = studies.closed_loop.identified_twin(sim, gap, seconds, tmp_path)
+    for name in identification.FITTED[:3]:  # relative errors of E, eta, rho: measured within 0.08
+        assert getattr(fit.gap, name) == pytest.approx(getattr(gap, name), abs=0.1)
+    assert fit.gap.motor_lag == pytest.approx(gap.motor_lag, abs=5e-3)
+
+    commands = identification.excitation_commands(sim, seconds)
+    plant = hardware.CablePlant(sim.robot, sim.gravity, gap)
+    times, tracked = hardware.observe_run(
+        plant.sim, plant.replay(commands[None])["q"][0], hardware.twin_camera(sim, gap), 0
+    )
+    states = hardware.CablePlant(sim.robot, sim.gravity, fit.gap).replay(commands[None])["states"][0]
+    seen = np.isfinite(tracked).all(1) & (times <= len(commands) * DT)
+    t = np.arange(len(commands) + 1) * DT
+    predicted = np.stack([np.interp(times[seen], t, states[:, k]) for k in range(3)], -1)
+    rmse_mm = 1e3 * np.sqrt(np.mean(np.sum((predicted - tracked[seen]) ** 2, -1)))
+    assert rmse_mm == pytest.approx(fit.rmse_mm, rel=1e-6)
