@@ -23,8 +23,9 @@ REPO = Path(__file__).resolve().parent.parent
 # every layer writes under; $SOFTFLOW_DATA moves it (e.g. for an installed package).
 DATA_DIR = Path(os.environ.get("SOFTFLOW_DATA", REPO / "data"))
 # Committed copies of small caches that cost minutes to compute and depend on nothing but their
-# key (reference trajectories and static tables: thousands of static solves): read when the
-# cache itself lacks the file, so a fresh clone plans at once; a run never writes here.
+# key (reference trajectories and static tables: thousands of static solves; the ci twin's
+# identification fit): read when the cache itself lacks the file, so a fresh clone plans at once;
+# a run never writes here.
 SHIPPED_CACHE = REPO / "cache"
 
 

@@ -65,7 +65,7 @@ def test_the_shipped_ci_identification_is_what_its_key_computes(tmp_path, monkey
     monkeypatch.setattr(identification, "identify_twin", no_fit)
     sim, gap, seconds = Simulator(HW_ROBOT, "vertical"), hardware.TYPICAL_GAP, PROFILES["ci"].identification_seconds
     fit = studies.closed_loop.identified_twin(sim, gap, seconds, tmp_path)
-    for name in identification.FITTED[:3]:  # relative errors of E, eta, rho: measured within 0.08
+    for name in identification.FITTED[:3]:  # relative errors of E, eta, rho: measured within 0.042
         assert getattr(fit.gap, name) == pytest.approx(getattr(gap, name), abs=0.1)
     assert fit.gap.motor_lag == pytest.approx(gap.motor_lag, abs=5e-3)
 
