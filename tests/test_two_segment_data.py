@@ -298,3 +298,26 @@ def test_the_study_runs_in_process_and_scores_every_observation(sim, tmp_path, m
     dataset = data.load_dataset(SMALL, TWO_SEGMENT_ROD, progress=False)
     truth = two_segment._true_steps(grid, dataset, sim, tmp_path)
     assert two_segment._tip_step(sim, truth, dataset.u[dataset.test[:1]]) < 1e-6  # mm
+
+
+def test_references_by_name_come_in_that_order_without_the_random_lift(sim, tmp_path, monkeypatch):
+    """Named shapes and paths of the paper grid come from the shipped cache; its 24 random
+    references (not shipped: a static lift of minutes) are made only when one is asked for."""
+    monkeypatch.setattr(references, "DATA_DIR", tmp_path)  # nothing cached on this machine's side
+    monkeypatch.setattr(two_segment, "_random", lambda n: pytest.fail("the random set was built"))
+    picked = two_segment.references(sim, "paper", "tip", names=["path3d-0", "circle"])
+    assert [r.name for r in picked] == ["path3d-0", "circle"]
+    assert picked[1].states.shape[-1] == 6  # the tip's state of the cached tip-and-disk reference
+    with pytest.raises(ValueError, match=r"no reference \['hexagon'\] in the 'paper' two-segment grid"):
+        two_segment.references(sim, "paper", names=["hexagon"])
+
+
+def test_a_fresh_clone_plans_with_the_shipped_seed_0_models_of_the_tip(tmp_path):
+    """The study's folder holds no model: the shipped seed-0 tip models stand in (paper, tip,
+    seed 0 only), each planning as the study plans."""
+    names = ["mlp", "rf-fwd"]
+    shipped = two_segment.trained_controllers(tmp_path, "paper", "tip", names)
+    assert [c.name for c in shipped] == names and all(c.workspace_margin is None for c in shipped)
+    assert two_segment.trained_controllers(tmp_path, "paper", "tip+disk", names) == []
+    assert two_segment.trained_controllers(tmp_path, "paper", "tip", names, seed=1) == []
+    assert two_segment.trained_controllers(tmp_path, "ci", "tip", names) == []

@@ -77,16 +77,30 @@ def cells(profile_name: str) -> list[dict]:
     ]
 
 
-def references(sim: Simulator, profile_name: str, observation: str = "tip") -> list[Reference]:
+def references(sim: Simulator, profile_name: str, observation: str = "tip", names=None) -> list[Reference]:
     """The profile's references for the two-segment rod as ``observation`` sees them: its shapes,
-    Rand1..Rand<n_random>, then its 3-D paths. Each is made once with the middle disk and cached;
-    "tip" keeps the tip's state of it."""
+    Rand1..Rand<n_random>, then its 3-D paths; ``names``: only those, in that order (the random
+    set, a static lift of minutes when not cached, is made only when one of it is asked for).
+    Each is made once with the middle disk and cached; "tip" keeps the tip's state of it."""
     grid = TWO_SEGMENT[profile_name]
+    random_set = names is None or any(str(name).startswith("Rand") for name in names)
     made = [
         *(cached_references(sim, f"two-segment-{name}", _shape(name))[0] for name in grid["shapes"]),
-        *cached_references(sim, f"two-segment-random-{grid['n_random']}", _random(grid["n_random"])),
+        *(
+            cached_references(sim, f"two-segment-random-{grid['n_random']}", _random(grid["n_random"]))
+            if random_set
+            else []
+        ),
         *(cached_references(sim, f"two-segment-path3d-{a}", _path(a))[0] for a in PATH3D_STARTS[: grid["paths"]]),
     ]
+    if names is not None:
+        by_name = {r.name: r for r in made}
+        unknown = [name for name in names if name not in by_name]
+        if unknown:
+            raise ValueError(
+                f"no reference {unknown} in the {profile_name!r} two-segment grid; expected some of {list(by_name)}"
+            )
+        made = [by_name[name] for name in names]
     return made if observation == "tip+disk" else [replace(r, states=tip_of(r.states)) for r in made]
 
 
@@ -206,12 +220,16 @@ def _true_steps(grid: dict, dataset: data.Dataset, sim: Simulator, workdir: Path
 def trained_controllers(workdir: Path, profile_name: str, observation: str, models, seed: int = 0) -> list[Controller]:
     """The controllers of ``models`` (names) that the study's cells trained for ``observation`` into
     ``workdir`` (the sweep's folder of this study), each planning as the study plans: extrapolation
-    is measured, not refused. Models not trained on this machine are left out (a fresh clone has
-    the study's rows, not its models)."""
-    root = _models_root(workdir, profile_name, observation)
+    is measured, not refused. Where this machine has not trained a seed-0 paper model of the tip,
+    its shipped copy (``ship_models``) stands in; other models not trained here are left out (a
+    fresh clone has the study's rows, not its models)."""
+    root, rod = _models_root(workdir, profile_name, observation), rod_folder(TWO_SEGMENT_ROD, GRAVITY)
+    shipped = profile_name == "paper" and observation == "tip" and seed == 0  # ship_models' copies
     controllers = []
     for name in dict.fromkeys(models):
-        path = checkpoint_path(name, profile_name, rod_folder(TWO_SEGMENT_ROD, GRAVITY), seed=seed, root=root)
+        path = checkpoint_path(name, profile_name, rod, seed=seed, root=root)
+        if not path.is_file() and shipped:
+            path = checkpoint_path(name, profile_name, rod, shipped=True)
         if path.is_file():
             controller = load_controller(path, robot=TWO_SEGMENT_ROD, gravity=GRAVITY)
             controller.workspace_margin = None
