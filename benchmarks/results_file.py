@@ -12,6 +12,8 @@ from pathlib import Path
 
 import pandas as pd
 
+from softflow.report.provenance import cpu_model
+
 REPO = Path(__file__).resolve().parent.parent
 RESULTS = REPO / "figures" / "bench"
 
@@ -32,15 +34,9 @@ def machine() -> str:
     memory = ""
     if Path("/proc/meminfo").exists():
         memory = f", {int(Path('/proc/meminfo').read_text().split()[1]) / 2**20:.0f} GiB"
-    cpu = ""  # the same sandbox has come with CPUs of very different speeds: name the one measured
-    if Path("/proc/cpuinfo").exists():
-        models = [
-            line.split(":", 1)[1].strip()
-            for line in Path("/proc/cpuinfo").read_text().splitlines()
-            if line.startswith("model name")
-        ]
-        cpu = f" ({models[0]})" if models else ""
-    return f"{platform.machine()}{cpu}, {os.cpu_count()} cores{memory}, Python {platform.python_version()}"
+    cpu = cpu_model()  # the same sandbox has come with CPUs of very different speeds: name the one measured
+    named = f"{platform.machine()} ({cpu})" if cpu else platform.machine()
+    return f"{named}, {os.cpu_count()} cores{memory}, Python {platform.python_version()}"
 
 
 def commit() -> str:

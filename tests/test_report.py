@@ -516,7 +516,7 @@ def test_results_page_holds_every_table_and_section_and_only_existing_figures(pr
     ]
     for heading, text in zip(headings[1:5], tables.values()):
         assert f"{heading}\n\n{text}\n" in page  # each table under its heading
-    assert "| 01_simulator.ipynb | 2.0 |" in page and "Total: 2.0 min." in page  # 07 itself is not timed
+    assert "| 01_simulator.ipynb | 2.0 | x86_64" in page and "Total: 2.0 min." in page  # 07 itself is not timed
     assert "| best RF variant - best baseline (table1) | 2 | 2 | 1 |" in page  # random: the bootstrap alone
     assert "on 3 of 4 references" in page
     assert "| 18 % lower / -10 %, no ranking |" in page
@@ -524,3 +524,27 @@ def test_results_page_holds_every_table_and_section_and_only_existing_figures(pr
     assert "### High-speed burst circle\n\n![High-speed burst circle](../figures/05_burst.png)" in page
     assert page.count("![") == 1  # no other figure exists
     assert page.endswith("05_burst.png)\n")
+
+
+def test_a_run_of_some_notebooks_keeps_the_measured_times_of_the_others(tmp_path):
+    """The wall-time table is each notebook's last timed run: a later run of one notebook
+    replaces its row (with this machine and commit) and keeps the rest as measured."""
+    from softflow.report.provenance import recorded_wall_times
+
+    file = tmp_path / "bench" / "reproduce.csv"
+    first, second = tmp_path / "first", tmp_path / "second"
+    for run, durations in ((first, {"01_a.ipynb": 60.0, "02_b.ipynb": 120.0}), (second, {"02_b.ipynb": 30.0})):
+        run.mkdir()
+        for name, seconds in durations.items():
+            (run / name).write_text(json.dumps({"metadata": {"papermill": {"duration": seconds}}}))
+    recorded_wall_times(first, file)
+    kept = pd.read_csv(file, index_col="notebook")
+    kept.loc["01_a.ipynb", "machine"] = "another machine"
+    kept.to_csv(file)
+    times = recorded_wall_times(second, file)
+    assert times.minutes.to_dict() == {"01_a.ipynb": 1.0, "02_b.ipynb": 0.5}
+    assert times.loc["01_a.ipynb", "machine"] == "another machine"  # not re-stamped
+    assert pd.read_csv(file, index_col="notebook").minutes.to_dict() == times.minutes.to_dict()  # written back
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert recorded_wall_times(empty, file).equals(times)  # nothing timed: nothing replaced

@@ -27,7 +27,7 @@ EXPORTS = {
         "markdown",
         "save_table",
     ],
-    "provenance": ["CODE", "notebook_wall_times", "machine", "commit"],
+    "provenance": ["CODE", "notebook_wall_times", "recorded_wall_times", "machine", "commit"],
     "page": [
         "FIGURES",
         "claims",

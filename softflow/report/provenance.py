@@ -10,9 +10,25 @@ from pathlib import Path
 
 import pandas as pd
 
-from softflow.store import REPO
+from softflow.store import REPO, write_text
 
+WALL_TIME_COLUMNS = ["minutes", "machine", "date", "commit"]
 CODE = ("softflow", "notebooks", "Makefile", "environment.lock", "checkpoints")  # what decides the results
+
+
+def recorded_wall_times(run_dir: Path, file: Path, running: str = "07") -> pd.DataFrame:
+    """Minutes per notebook of its last timed run, with where it ran (columns minutes, machine,
+    date, commit): the notebooks of this papermill run (``notebook_wall_times``) replace their
+    rows of ``file`` (a CSV, written back), the others keep theirs. So a run of a few notebooks
+    never drops the measured times of the rest, and each time says what it was measured on."""
+    file, minutes = Path(file), notebook_wall_times(run_dir, running)
+    kept = pd.read_csv(file, index_col="notebook") if file.is_file() else pd.DataFrame(columns=WALL_TIME_COLUMNS)
+    if len(minutes):
+        stamp = dict(machine=machine(), date=pd.Timestamp.now(tz="UTC").strftime("%Y-%m-%d"), commit=commit())
+        fresh = pd.DataFrame([dict(minutes=m, **stamp) for m in minutes], index=minutes.index)
+        kept = pd.concat([kept.drop(fresh.index, errors="ignore"), fresh]).sort_index().rename_axis("notebook")
+        write_text(file, kept.to_csv())
+    return kept
 
 
 def notebook_wall_times(run_dir: Path, running: str = "07") -> pd.Series:
@@ -29,15 +45,29 @@ def notebook_wall_times(run_dir: Path, running: str = "07") -> pd.Series:
 
 
 def machine() -> str:
-    """One line about the machine the results were measured on."""
+    """One line about the machine the results were measured on, its CPU model named: machines of
+    the same size have run this code 2.5x apart in speed."""
     memory = ""
     if Path("/proc/meminfo").exists():
         kib = int(Path("/proc/meminfo").read_text().split()[1])
         memory = f", {kib / 2**20:.0f} GiB memory"
+    cpu = cpu_model() or platform.processor()
     return (
-        f"{platform.machine()} {platform.processor() or ''}".strip() + f", {os.cpu_count()} cores{memory}, "
+        platform.machine() + (f" ({cpu})" if cpu else "") + f", {os.cpu_count()} cores{memory}, "
         f"Python {platform.python_version()}, {platform.system()}"
     )
+
+
+def cpu_model() -> str:
+    """The CPU's model name from /proc/cpuinfo ('' where there is none)."""
+    if not Path("/proc/cpuinfo").exists():
+        return ""
+    models = [
+        line.split(":", 1)[1].strip()
+        for line in Path("/proc/cpuinfo").read_text().splitlines()
+        if line.startswith("model name")
+    ]
+    return models[0] if models else ""
 
 
 def commit() -> str:
