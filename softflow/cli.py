@@ -118,6 +118,14 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="recompute the cells whose rows ship in figures/sweeps/ (cached rows in data/sweeps/ still count)",
     )
+    sub.add_argument(
+        "--where",
+        action="append",
+        type=_field_values,
+        metavar="FIELD=V[,V]",
+        help="compute only the cells whose FIELD is one of the values (repeat for several fields), "
+        "e.g. --where runs=60,180 --where gravity=vertical",
+    )
 
     sub = verb("models", _models, "list the shipped checkpoints: rod, data, budget, Table I row", model_cards.__doc__)
     sub.add_argument("--cards", action="store_true", help="print every model card: the text of checkpoints/README.md")
@@ -199,6 +207,15 @@ def _columns(text: str) -> list[str]:
     return names
 
 
+def _field_values(text: str) -> tuple[str, list[str]]:
+    """FIELD=V[,V] -> (FIELD, [V, ...])."""
+    field, _, values = text.partition("=")
+    names = [value.strip() for value in values.split(",")]
+    if not field.strip() or not all(names):
+        raise argparse.ArgumentTypeError(f"expected FIELD=VALUE[,VALUE], e.g. runs=60,180; got {text!r}")
+    return field.strip(), names
+
+
 def _data(args):
     start = time.perf_counter()
     profile, robot = get_profile(args.profile), ROBOTS[args.robot]
@@ -256,14 +273,21 @@ def _sweep(args):
     start = time.perf_counter()
     with sweep.connect(args.scheduler_file, args.scheduler, args.workers) as client:
         result = sweep.run_sweep(
-            args.study, args.profile, client=client, device=args.device, shipped=not args.recompute
+            args.study,
+            args.profile,
+            client=client,
+            device=args.device,
+            shipped=not args.recompute,
+            where=dict(args.where or ()),
         )
     for failure in result.failures:
         print(f"cell {failure.cell} failed: {failure.error}", file=sys.stderr)
     computed = result.computed - len(result.failures)
+    unrun = result.missing - len(result.failures)
     print(
         f"{args.study}: {len(result.rows)} rows ({result.cached} cached, {computed} computed, "
-        f"{len(result.failures)} failed) in {time.perf_counter() - start:.0f} s"
+        f"{len(result.failures)} failed{f', {unrun} cells not asked for' if unrun else ''}) "
+        f"in {time.perf_counter() - start:.0f} s"
     )
     print(result.csv)
     if result.failures:

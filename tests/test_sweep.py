@@ -219,3 +219,24 @@ def test_bad_input_is_refused():
             pass
     with pytest.raises(SystemExit):
         cli.main(["sweep", "smoke", "--profile", "ci", "--workers", "0"])
+
+
+def test_where_computes_only_the_cells_asked_for(client, tmp_path, monkeypatch, capsys):
+    """A study of hours can run its cheap cells first: ``where`` picks cells by their fields (as
+    text, as a command line gives them); the others stay missing, and a later run completes it."""
+    monkeypatch.setitem(sweep.STUDIES, "flaky", Study(cells=_flaky_cells, run_cell=_flaky_run))
+    picked = sweep.run_sweep(
+        "flaky", "ci", client=None, device="cpu", root=tmp_path, progress=False, where={"seed": ["0", "2"]}
+    )
+    assert (picked.computed, picked.missing, picked.failures) == (2, 1, [])
+    assert picked.rows["seed"].tolist() == [0, 2] and picked.rows["score"].tolist() == [0, 20]
+    with pytest.raises(ValueError, match=r"no cell of this study has the field\(s\) \['runs'\]"):
+        sweep.run_sweep("flaky", "ci", client=None, device="cpu", root=tmp_path, where={"runs": ["60"]})
+    monkeypatch.setattr(sweep, "SWEEPS_DIR", tmp_path)
+    address = client.scheduler.address
+    cli.main(
+        ["sweep", "flaky", "--profile", "ci", "--scheduler", address, "--device", "cpu", "--where", "condition=ok"]
+    )
+    assert "(2 cached, 0 computed, 0 failed, 1 cells not asked for)" in capsys.readouterr().out
+    with pytest.raises(SystemExit):
+        cli.main(["sweep", "flaky", "--profile", "ci", "--where", "seed"])

@@ -109,6 +109,7 @@ def run_sweep(
     shipped: bool = True,
     progress: bool = True,
     compute_missing: bool = True,
+    where: dict | None = None,
 ) -> SweepResult:
     """Run every cell of ``study`` that has no cached rows, on ``client``'s cluster (``None``:
     here, one after another), and write the tidy CSV of all rows.
@@ -119,7 +120,9 @@ def run_sweep(
     rows of the others are cached and written. ``compute_missing=False`` only reads: the rows
     present (shipped and cached) in grid order, ``missing`` says how many cells have none, and
     nothing runs or is written (a notebook shows a study of hours that a cluster, or a sweep
-    still running, computes; that sweep owns the CSVs).
+    still running, computes; that sweep owns the CSVs). ``where``: compute only the cells whose
+    fields take one of the given values ({field: [values]}, e.g. the cheap cells of a study of
+    hours first); the CSV still holds every cell's rows present, and ``missing`` counts the rest.
     """
     check_choice(study, "study", STUDIES)
     get_profile(profile_name)
@@ -140,9 +143,11 @@ def run_sweep(
         return SweepResult(
             csv, _table(rows, keys), [], cached=len(cells) - len(missing), computed=0, missing=len(missing)
         )
+    where = _checked_where(where, cells)
+    todo = [(key, cell) for key, cell in missing if _selected(cell, where)]
     failures = []
-    bar = tqdm(total=len(cells), initial=len(rows), desc=f"sweep {study}", unit="cell", disable=not progress)
-    for key, cell, outcome in _outcomes(study, missing, profile_name, device, workdir, client):
+    bar = tqdm(total=len(rows) + len(todo), initial=len(rows), desc=f"sweep {study}", unit="cell", disable=not progress)
+    for key, cell, outcome in _outcomes(study, todo, profile_name, device, workdir, client):
         if isinstance(outcome, Exception):
             failures.append(Failure(cell, f"{type(outcome).__name__}: {outcome}"))
         else:
@@ -153,8 +158,27 @@ def run_sweep(
     bar.close()
     table = _write_tables(rows, keys, csv, None if shipped else shipped_csv, shipped)  # new rows shipped as they came
     return SweepResult(
-        csv, table, failures, cached=len(cells) - len(missing), computed=len(missing), missing=len(failures)
+        csv,
+        table,
+        failures,
+        cached=len(cells) - len(missing),
+        computed=len(todo),
+        missing=len(missing) - len(todo) + len(failures),
     )
+
+
+def _checked_where(where: dict | None, cells: list[dict]) -> dict:
+    """``where`` ({field: values}) with each field one that the study's cells have; else ValueError."""
+    fields = {name for cell in cells for name in cell}
+    if unknown := sorted(set(where or {}) - fields):
+        raise ValueError(f"where: no cell of this study has the field(s) {unknown}; expected some of {sorted(fields)}")
+    return where or {}
+
+
+def _selected(cell: dict, where: dict) -> bool:
+    """Whether ``cell`` takes one of the given values in every field of ``where``; values compare
+    as text, so a command line's "60" picks runs=60."""
+    return all(str(cell.get(field)) in {str(value) for value in values} for field, values in where.items())
 
 
 def _write_tables(rows: dict, keys, csv: Path, shipped_csv: Path | None, shipped: bool) -> pd.DataFrame:
