@@ -240,3 +240,17 @@ def test_where_computes_only_the_cells_asked_for(client, tmp_path, monkeypatch, 
     assert "(2 cached, 0 computed, 0 failed, 1 cells not asked for)" in capsys.readouterr().out
     with pytest.raises(SystemExit):
         cli.main(["sweep", "flaky", "--profile", "ci", "--where", "seed"])
+
+
+def test_shipped_rows_are_the_committed_csv_and_nothing_else(tmp_path, monkeypatch):
+    """A notebook that shows another notebook's study reads its shipped rows only: what this
+    machine has computed (data/sweeps/) never changes its output."""
+    monkeypatch.setattr(sweep, "SHIPPED_RESULTS", tmp_path / "shipped")
+    monkeypatch.setattr(sweep, "SWEEPS_DIR", tmp_path / "cache")
+    sweep.run_sweep("smoke", "ci", client=None, device="cpu", progress=False)  # rows in the cache, none shipped
+    assert sweep.shipped_rows("smoke", "ci").empty
+    (tmp_path / "shipped").mkdir()
+    pd.DataFrame({"key": ["a"], "score": [1.5]}).to_csv(tmp_path / "shipped" / "smoke-paper.csv", index=False)
+    assert sweep.shipped_rows("smoke", "paper").to_dict("records") == [{"key": "a", "score": 1.5}]
+    with pytest.raises(ValueError, match="study"):
+        sweep.shipped_rows("no-such-study", "paper")

@@ -55,6 +55,7 @@ EXPORTS = {
         "data_size_table",
         "per_step_table",
         "regime_map",
+        "regime_rows",
         "SIZE_EFFECTS",
         "size_effects",
         "lambda_decision",

@@ -21,11 +21,11 @@ from softflow.report.study_tables import (
     recorded_model_rule,
     recording_rule,
     regime_map,
+    regime_rows,
     row_intervals,
     size_effects,
     table_order,
     two_segment_differences,
-    two_segment_variants,
     verdict_counts,
 )
 from softflow.report.tables import BASELINES, LABELS, RF_FAMILY, markdown, our_table, read_result, read_sweep
@@ -343,8 +343,7 @@ def _family_differences(frame: pd.DataFrame) -> dict:
 def _regime_rows(profile: Profile) -> pd.DataFrame:
     """The ambiguity study's rows and, as far as they are computed, the two_segment study's as two
     more variants of the regime map (``two_segment_variants``)."""
-    rows, two_segments = read_sweep(profile, "ambiguity"), two_segment_variants(_two_segment_rows(profile))
-    return pd.concat([rows, two_segments], ignore_index=True) if len(two_segments) else rows
+    return regime_rows(read_sweep(profile, "ambiguity"), _two_segment_rows(profile))
 
 
 def _two_segment_rows(profile: Profile) -> pd.DataFrame:

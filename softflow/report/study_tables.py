@@ -166,6 +166,13 @@ def two_segment_variants(rows: pd.DataFrame) -> pd.DataFrame:
     return models.assign(variant="two segments, " + models["observation"])
 
 
+def regime_rows(ambiguity_rows: pd.DataFrame, two_segment_rows: pd.DataFrame) -> pd.DataFrame:
+    """The regime map's variants: the ambiguity study's and, as far as its rows go, the
+    two_segment study's two observations (``two_segment_variants``)."""
+    two_segments = two_segment_variants(two_segment_rows)
+    return pd.concat([ambiguity_rows, two_segments], ignore_index=True) if len(two_segments) else ambiguity_rows
+
+
 def regime_map(rows: pd.DataFrame) -> pd.DataFrame:
     """Per ambiguity variant: the conditional spread of u (and the estimator's floor) and each
     flow minus the MLP, z = 0 plans: tracking RMSE (mm) per family, paired over references

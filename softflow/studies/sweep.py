@@ -167,6 +167,15 @@ def run_sweep(
     )
 
 
+def shipped_rows(study: str, profile_name: str) -> pd.DataFrame:
+    """The rows of ``study`` that ship with the repository (``figures/sweeps/<study>-<profile>.csv``:
+    the paper profile's), or an empty frame: what a notebook shows of another notebook's study
+    without depending on what this machine has computed."""
+    check_choice(study, "study", STUDIES)
+    csv = SHIPPED_RESULTS / f"{study}-{get_profile(profile_name).name}.csv"
+    return pd.read_csv(csv) if csv.exists() else pd.DataFrame()
+
+
 def _checked_where(where: dict | None, cells: list[dict]) -> dict:
     """``where`` ({field: values}) with each field one that the study's cells have; else ValueError."""
     fields = {name for cell in cells for name in cell}
