@@ -548,3 +548,11 @@ def test_a_run_of_some_notebooks_keeps_the_measured_times_of_the_others(tmp_path
     empty = tmp_path / "empty"
     empty.mkdir()
     assert recorded_wall_times(empty, file).equals(times)  # nothing timed: nothing replaced
+
+
+def test_a_pipe_inside_a_markdown_cell_is_escaped():
+    """A label like "rf | friction, 60 runs" stays one cell of the table."""
+    from softflow.report import markdown
+
+    text = markdown(pd.DataFrame({"best": ["rf | friction, 60 runs"], "mm": [-1.282]}, index=["vertical"]))
+    assert text.splitlines()[-1] == "| vertical | rf \\| friction, 60 runs | -1.28 |"

@@ -200,9 +200,10 @@ def markdown(table: pd.DataFrame, digits: int = 2) -> str:
 
 
 def _cell(value, digits: int) -> str:
+    """A value as Markdown table text: floats to ``digits``, a "|" inside escaped (it would split the cell)."""
     if isinstance(value, (float, np.floating)):
         return "--" if np.isnan(value) else f"{value:.{digits}f}"
-    return str(value)
+    return str(value).replace("|", "\\|")
 
 
 def save_table(profile: Profile, table: pd.DataFrame, name: str, digits: int = 2) -> str:
