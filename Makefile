@@ -38,12 +38,13 @@ NBVAL := --nbval --nbval-current-env --nbval-sanitize-with tests/nbval_sanitize.
 # result: most unit tests with the twin's notebooks (06; 10 closes the loop on 06's twin models,
 # 13 reuses its dataset), and the other notebooks in order (04 reads 03's results, 08 03's and
 # 04's, 11 09's fwd_lambda rows) with the unit tests of TESTS_B, which even the lanes' times
-# (figures/bench/notebooks.csv). One
+# (figures/bench/notebooks.csv); the ci cells that test_shipped_rows recomputes make the ci
+# datasets and the twin's models early, which 02 and 06 then find. One
 # BLAS thread per lane: two lanes of two threads each spin against each other on two cores.
 LAST := notebooks/07_comparison_tables.ipynb
 LANE_A := notebooks/06_hardware_replay.ipynb notebooks/10_closed_loop.ipynb notebooks/13_recorded_runs.ipynb
 LANE_B := $(filter-out $(LANE_A) $(LAST),$(NOTEBOOKS))
-TESTS_B := tests/test_recorded_study.py tests/test_friction.py
+TESTS_B := tests/test_recorded_study.py tests/test_friction.py tests/test_shipped_rows.py
 test: export OMP_NUM_THREADS = 1
 test: export OPENBLAS_NUM_THREADS = 1
 # glibc gives a freed large array back to the system and faults its pages in again at the next

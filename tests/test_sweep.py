@@ -102,6 +102,7 @@ def test_failing_cell_is_named_and_the_others_return(client, tmp_path, monkeypat
     # The CLI on the same cluster by address: the good rows come from the cache, the bad cell
     # runs again, is named on stderr, and the exit status says the sweep is incomplete.
     monkeypatch.setattr(sweep, "SWEEPS_DIR", tmp_path)
+    monkeypatch.setattr(sweep, "SHIPPED_RESULTS", tmp_path / "shipped")  # never the committed rows
     with pytest.raises(SystemExit) as exit:
         cli.main(["sweep", "flaky", "--profile", "ci", "--scheduler", client.scheduler.address, "--device", "cpu"])
     assert exit.value.code == 1
@@ -112,6 +113,7 @@ def test_failing_cell_is_named_and_the_others_return(client, tmp_path, monkeypat
 
 def test_cli_runs_on_a_cluster_through_its_scheduler_file(client, scheduler_file, tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(sweep, "SWEEPS_DIR", tmp_path / "sweeps")
+    monkeypatch.setattr(sweep, "SHIPPED_RESULTS", tmp_path / "shipped")  # never the committed rows
     cli.main(["sweep", "smoke", "--profile", "ci", "--scheduler-file", str(scheduler_file), "--device", "cpu"])
     last = capsys.readouterr().out.strip().splitlines()[-1]
     assert last == str(tmp_path / "sweeps" / "smoke-ci.csv")
@@ -233,6 +235,7 @@ def test_where_computes_only_the_cells_asked_for(client, tmp_path, monkeypatch, 
     with pytest.raises(ValueError, match=r"no cell of this study has the field\(s\) \['runs'\]"):
         sweep.run_sweep("flaky", "ci", client=None, device="cpu", root=tmp_path, where={"runs": ["60"]})
     monkeypatch.setattr(sweep, "SWEEPS_DIR", tmp_path)
+    monkeypatch.setattr(sweep, "SHIPPED_RESULTS", tmp_path / "shipped")  # never the committed rows
     address = client.scheduler.address
     cli.main(
         ["sweep", "flaky", "--profile", "ci", "--scheduler", address, "--device", "cpu", "--where", "condition=ok"]
@@ -247,9 +250,9 @@ def test_shipped_rows_are_the_committed_csv_and_nothing_else(tmp_path, monkeypat
     machine has computed (data/sweeps/) never changes its output."""
     monkeypatch.setattr(sweep, "SHIPPED_RESULTS", tmp_path / "shipped")
     monkeypatch.setattr(sweep, "SWEEPS_DIR", tmp_path / "cache")
-    sweep.run_sweep("smoke", "ci", client=None, device="cpu", progress=False)  # rows in the cache, none shipped
+    sweep.run_sweep("smoke", "ci", client=None, device="cpu", progress=False, shipped=False)  # rows in the cache
+    (tmp_path / "shipped" / "smoke-ci.csv").unlink()  # ... and none shipped
     assert sweep.shipped_rows("smoke", "ci").empty
-    (tmp_path / "shipped").mkdir()
     pd.DataFrame({"key": ["a"], "score": [1.5]}).to_csv(tmp_path / "shipped" / "smoke-paper.csv", index=False)
     assert sweep.shipped_rows("smoke", "paper").to_dict("records") == [{"key": "a", "score": 1.5}]
     with pytest.raises(ValueError, match="study"):

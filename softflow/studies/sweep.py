@@ -3,10 +3,11 @@ per cell, each cell's result rows cached by the content key of what made them.
 
 A rerun loads the cached rows and computes only the missing cells, so an interrupted sweep
 resumes where it stopped; a cell that raises is reported by name while the others still
-return. Rows are gathered into one tidy CSV, ``data/sweeps/<study>-<profile>.csv``; the
-paper profile's also ships, as ``figures/sweeps/<study>-paper.csv``, and its rows count as
-cached wherever their keys match, so a fresh clone recomputes nothing (``shipped=False``
-recomputes them). Without a running cluster the cells run on a ``LocalCluster`` of
+return. Rows are gathered into one tidy CSV, ``data/sweeps/<study>-<profile>.csv``; they
+also ship, as ``figures/sweeps/<study>-<profile>.csv``, and count as cached wherever their keys
+match, so a fresh clone recomputes nothing (``shipped=False`` recomputes them): the paper rows
+are the results, the ci rows what the ci notebooks show (``make test`` reads them; a test
+recomputes one cell of each study against them). Without a running cluster the cells run on a ``LocalCluster`` of
 single-threaded worker processes; ``client=None`` runs them in this process, one after
 another (for debugging). The studies themselves live in ``studies``.
 """
@@ -31,7 +32,7 @@ from softflow.store import DATA_DIR, REPO, content_key, write_text
 from softflow.studies.registry import STUDIES
 
 SWEEPS_DIR = DATA_DIR / "sweeps"  # cached rows, the study's datasets and models, result CSVs
-SHIPPED_RESULTS = REPO / "figures" / "sweeps"  # the paper profile's rows, committed
+SHIPPED_RESULTS = REPO / "figures" / "sweeps"  # every profile's rows, committed
 DEVICES = ("auto", "cpu", "cuda", "mps")
 
 
@@ -115,7 +116,7 @@ def run_sweep(
     here, one after another), and write the tidy CSV of all rows.
 
     ``root``: the sweep cache (default ``data/sweeps``; only the default one reads and writes
-    the shipped paper rows, and only with ``shipped``). ``device`` is resolved where the cells
+    the shipped rows, and only with ``shipped``). ``device`` is resolved where the cells
     run (on a worker of the cluster). A failing cell becomes a ``Failure`` in the result; the
     rows of the others are cached and written. ``compute_missing=False`` only reads: the rows
     present (shipped and cached) in grid order, ``missing`` says how many cells have none, and
@@ -126,7 +127,7 @@ def run_sweep(
     """
     check_choice(study, "study", STUDIES)
     get_profile(profile_name)
-    shipped_csv = SHIPPED_RESULTS / f"{study}-{profile_name}.csv" if root is None and profile_name == "paper" else None
+    shipped_csv = SHIPPED_RESULTS / f"{study}-{profile_name}.csv" if root is None else None
     root = Path(SWEEPS_DIR if root is None else root)
     workdir = root / study
     device = resolve_device(device) if client is None else client.submit(resolve_device, device, pure=False).result()
@@ -168,8 +169,8 @@ def run_sweep(
 
 
 def shipped_rows(study: str, profile_name: str) -> pd.DataFrame:
-    """The rows of ``study`` that ship with the repository (``figures/sweeps/<study>-<profile>.csv``:
-    the paper profile's), or an empty frame: what a notebook shows of another notebook's study
+    """The rows of ``study`` that ship with the repository (``figures/sweeps/<study>-<profile>.csv``),
+    or an empty frame: what a notebook shows of another notebook's study
     without depending on what this machine has computed."""
     check_choice(study, "study", STUDIES)
     csv = SHIPPED_RESULTS / f"{study}-{get_profile(profile_name).name}.csv"
@@ -191,9 +192,9 @@ def _selected(cell: dict, where: dict) -> bool:
 
 
 def _write_tables(rows: dict, keys, csv: Path, shipped_csv: Path | None, shipped: bool) -> pd.DataFrame:
-    """The rows so far in grid order, written to the CSV and, for the paper profile, to the
-    shipped CSV, which is replaced only by a superset: these rows include its rows unless the
-    sweep recomputes them (shipped=False) and has not finished."""
+    """The rows so far in grid order, written to the CSV and to the shipped CSV, which is
+    replaced only by a superset: these rows include its rows unless the sweep recomputes them
+    (shipped=False) and has not finished."""
     table = _table(rows, keys)
     write_text(csv, table.to_csv(index=False))
     if shipped_csv is not None and len(table) and (shipped or len(rows) == len(keys)):
