@@ -137,16 +137,7 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
         return [unnamed(row, ilc_best_trial=int(t)) for row, t in zip(rows, trials)]
     observation = cell["observation"]
     dataset = data.load_dataset(grid["data"], TWO_SEGMENT_ROD, GRAVITY, observation=observation, progress=False)
-    model, checkpoint = training.ensure_trained(
-        cell["model"],
-        _budget(profile_name),
-        dataset,
-        TWO_SEGMENT_ROD,
-        GRAVITY,
-        seed=cell["seed"],
-        root=_models_root(workdir, profile_name, observation),
-        device=device,
-    )
+    model, checkpoint = trained_model(cell["model"], profile_name, observation, cell["seed"], workdir, device, dataset)
     controller = Controller(model, cell["model"], robot=TWO_SEGMENT_ROD, gravity=GRAVITY, workspace_margin=None)
     measured = dict(
         **ambiguity.cached_spread(dataset, workdir),
@@ -217,12 +208,28 @@ def _true_steps(grid: dict, dataset: data.Dataset, sim: Simulator, workdir: Path
     return cached_arrays(cache_file(workdir, "true-steps", dict(dataset=stem, episodes=episodes.tolist())), compute)
 
 
-def trained_controllers(workdir: Path, profile_name: str, observation: str, models, seed: int = 0) -> list[Controller]:
+def trained_model(name, profile_name, observation, seed, workdir: Path, device="cpu", dataset=None):
+    """(model, checkpoint) of ``name`` as the study's cell trains it: on the profile's dataset of
+    ``observation`` (``dataset``, when already loaded) with the study's fixed budget, into
+    ``workdir`` (found there when it exists)."""
+    if dataset is None:
+        grid = TWO_SEGMENT[profile_name]
+        dataset = data.load_dataset(grid["data"], TWO_SEGMENT_ROD, GRAVITY, observation=observation, progress=False)
+    root = _models_root(workdir, profile_name, observation)
+    return training.ensure_trained(
+        name, _budget(profile_name), dataset, TWO_SEGMENT_ROD, GRAVITY, seed=seed, root=root, device=device
+    )
+
+
+def trained_controllers(
+    workdir: Path, profile_name: str, observation: str, models, seed: int = 0, *, train_missing: bool = False
+) -> list[Controller]:
     """The controllers of ``models`` (names) that the study's cells trained for ``observation`` into
     ``workdir`` (the sweep's folder of this study), each planning as the study plans: extrapolation
     is measured, not refused. Where this machine has not trained a seed-0 paper model of the tip,
     its shipped copy (``ship_models``) stands in; other models not trained here are left out (a
-    fresh clone has the study's rows, not its models)."""
+    fresh clone has the study's rows, not its models), or trained now as their cells train them
+    with ``train_missing`` (the ci models: seconds each)."""
     root, rod = _models_root(workdir, profile_name, observation), rod_folder(TWO_SEGMENT_ROD, GRAVITY)
     shipped = profile_name == "paper" and observation == "tip" and seed == 0  # ship_models' copies
     controllers = []
@@ -230,6 +237,8 @@ def trained_controllers(workdir: Path, profile_name: str, observation: str, mode
         path = checkpoint_path(name, profile_name, rod, seed=seed, root=root)
         if not path.is_file() and shipped:
             path = checkpoint_path(name, profile_name, rod, shipped=True)
+        if not path.is_file() and train_missing:
+            trained_model(name, profile_name, observation, seed, workdir)
         if path.is_file():
             controller = load_controller(path, robot=TWO_SEGMENT_ROD, gravity=GRAVITY)
             controller.workspace_margin = None
