@@ -10,8 +10,8 @@ independently: a plan, a replay and the camera's noise per reference), which kee
 seconds where the whole cell takes minutes.
 
 The ci rows ship too (the ci notebooks show them, so ``make test`` reads them instead of
-computing every ci cell): one cell of every study, the cheapest by its shipped ``cell_seconds``,
-is recomputed whole, training included, and compared with its shipped rows."""
+computing every ci cell): one cell of every study, among its cheapest by the shipped
+``cell_seconds``, is recomputed whole, training included, and compared with its shipped rows."""
 
 import numpy as np
 import pandas as pd
@@ -65,7 +65,7 @@ def test_a_cheap_paper_cell_reproduces_its_shipped_rows(study, tmp_path, monkeyp
             )
 
 
-CI_CELLS = {  # study: the fields that pick its cheapest ci cell
+CI_CELLS = {  # study: the fields that pick one of its cheapest ci cells (shipped cell_seconds)
     "ambiguity": dict(model="mlp", variant="position-only"),
     "closed_loop": dict(mode="open", gap="typical"),
     "data_size": dict(model="mlp", episodes=200),

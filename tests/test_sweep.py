@@ -250,9 +250,10 @@ def test_shipped_rows_are_the_committed_csv_and_nothing_else(tmp_path, monkeypat
     machine has computed (data/sweeps/) never changes its output."""
     monkeypatch.setattr(sweep, "SHIPPED_RESULTS", tmp_path / "shipped")
     monkeypatch.setattr(sweep, "SWEEPS_DIR", tmp_path / "cache")
-    sweep.run_sweep("smoke", "ci", client=None, device="cpu", progress=False, shipped=False)  # rows in the cache
-    (tmp_path / "shipped" / "smoke-ci.csv").unlink()  # ... and none shipped
+    cache = tmp_path / "cache"  # an explicit root: rows in the cache, none shipped
+    sweep.run_sweep("smoke", "ci", client=None, device="cpu", root=cache, progress=False)
     assert sweep.shipped_rows("smoke", "ci").empty
+    (tmp_path / "shipped").mkdir()
     pd.DataFrame({"key": ["a"], "score": [1.5]}).to_csv(tmp_path / "shipped" / "smoke-paper.csv", index=False)
     assert sweep.shipped_rows("smoke", "paper").to_dict("records") == [{"key": "a", "score": 1.5}]
     with pytest.raises(ValueError, match="study"):

@@ -7,9 +7,9 @@ return. Rows are gathered into one tidy CSV, ``data/sweeps/<study>-<profile>.csv
 also ship, as ``figures/sweeps/<study>-<profile>.csv``, and count as cached wherever their keys
 match, so a fresh clone recomputes nothing (``shipped=False`` recomputes them): the paper rows
 are the results, the ci rows what the ci notebooks show (``make test`` reads them; a test
-recomputes one cell of each study against them). Without a running cluster the cells run on a ``LocalCluster`` of
-single-threaded worker processes; ``client=None`` runs them in this process, one after
-another (for debugging). The studies themselves live in ``studies``.
+recomputes one cell of each study against them). Without a running cluster the cells run on a
+``LocalCluster`` of single-threaded worker processes; ``client=None`` runs them in this
+process, one after another (for debugging). The studies themselves live in ``studies``.
 """
 
 from __future__ import annotations
@@ -170,8 +170,8 @@ def run_sweep(
 
 def shipped_rows(study: str, profile_name: str) -> pd.DataFrame:
     """The rows of ``study`` that ship with the repository (``figures/sweeps/<study>-<profile>.csv``),
-    or an empty frame: what a notebook shows of another notebook's study
-    without depending on what this machine has computed."""
+    or an empty frame: what a notebook shows of another notebook's study without depending on
+    what this machine has computed."""
     check_choice(study, "study", STUDIES)
     csv = SHIPPED_RESULTS / f"{study}-{get_profile(profile_name).name}.csv"
     return pd.read_csv(csv) if csv.exists() else pd.DataFrame()

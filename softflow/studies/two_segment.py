@@ -136,7 +136,7 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
         rows, trials = floor_rows(sim, scored, grid["ilc_iterations"])
         return [unnamed(row, ilc_best_trial=int(t)) for row, t in zip(rows, trials)]
     observation = cell["observation"]
-    dataset = data.load_dataset(grid["data"], TWO_SEGMENT_ROD, GRAVITY, observation=observation, progress=False)
+    dataset = _dataset(profile_name, observation)
     model, checkpoint = trained_model(cell["model"], profile_name, observation, cell["seed"], workdir, device, dataset)
     controller = Controller(model, cell["model"], robot=TWO_SEGMENT_ROD, gravity=GRAVITY, workspace_margin=None)
     measured = dict(
@@ -208,16 +208,32 @@ def _true_steps(grid: dict, dataset: data.Dataset, sim: Simulator, workdir: Path
     return cached_arrays(cache_file(workdir, "true-steps", dict(dataset=stem, episodes=episodes.tolist())), compute)
 
 
-def trained_model(name, profile_name, observation, seed, workdir: Path, device="cpu", dataset=None):
+def _dataset(profile_name: str, observation: str) -> data.Dataset:
+    grid = TWO_SEGMENT[profile_name]
+    return data.load_dataset(grid["data"], TWO_SEGMENT_ROD, GRAVITY, observation=observation, progress=False)
+
+
+def trained_model(
+    name: str,
+    profile_name: str,
+    observation: str,
+    seed: int,
+    workdir: Path,
+    device: str = "cpu",
+    dataset: data.Dataset | None = None,
+):
     """(model, checkpoint) of ``name`` as the study's cell trains it: on the profile's dataset of
     ``observation`` (``dataset``, when already loaded) with the study's fixed budget, into
     ``workdir`` (found there when it exists)."""
-    if dataset is None:
-        grid = TWO_SEGMENT[profile_name]
-        dataset = data.load_dataset(grid["data"], TWO_SEGMENT_ROD, GRAVITY, observation=observation, progress=False)
-    root = _models_root(workdir, profile_name, observation)
     return training.ensure_trained(
-        name, _budget(profile_name), dataset, TWO_SEGMENT_ROD, GRAVITY, seed=seed, root=root, device=device
+        name,
+        _budget(profile_name),
+        _dataset(profile_name, observation) if dataset is None else dataset,
+        TWO_SEGMENT_ROD,
+        GRAVITY,
+        seed=seed,
+        root=_models_root(workdir, profile_name, observation),
+        device=device,
     )
 
 
