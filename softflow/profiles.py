@@ -81,11 +81,11 @@ FIXED_BUDGET = {
 PROFILES = {
     "ci": Profile(
         "ci",
-        n_episodes=200,
+        n_episodes=100,
         bench_episodes=16,
         validation_seconds=1.0,
         identification_seconds=1.5,
-        train=TrainConfig(epochs=4, steps_per_epoch=150, batch_size=256, warmup_steps=50, val_samples=5000, patience=3),
+        train=TrainConfig(epochs=2, steps_per_epoch=150, batch_size=256, warmup_steps=50, val_samples=5000, patience=3),
         rod_train=(("two", FIXED_BUDGET["ci"]),),
     ),
     "paper": Profile(

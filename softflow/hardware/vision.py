@@ -150,8 +150,9 @@ def _frames(positions, centerlines, camera, rng, radius, wall, rod_diameter):
         _draw_marker(color, depth, centre, camera, radius)
         color += camera.pixel_noise * rng.standard_normal(color.shape, np.float32)
         depth += camera.depth_noise * depth**2 * rng.standard_normal(depth.shape, np.float32)
+        np.rint(color, out=color)  # in place: half the time of the copies, the same pixels
         yield (
-            np.clip(np.rint(color), 0, 255).astype(np.uint8),
+            np.clip(color, 0, 255, out=color).astype(np.uint8),
             np.clip(np.rint(depth / camera.depth_scale), 0, 65535).astype(np.uint16),
         )
 
