@@ -68,7 +68,7 @@ def test_a_cheap_paper_cell_reproduces_its_shipped_rows(study, tmp_path, monkeyp
 CI_CELLS = {  # study: the fields that pick one of its cheapest ci cells (shipped cell_seconds)
     "ambiguity": dict(model="mlp", variant="position-only"),
     "closed_loop": dict(mode="open", gap="typical"),
-    "data_size": dict(model="mlp", episodes=200),
+    "data_size": dict(model="mlp", episodes=100),
     "design": dict(variant="rf (λ = 0)"),
     "fwd_lambda": dict(consistency=0.0),
     "protocol": dict(model="rf", condition="speed-0.5"),

@@ -15,7 +15,7 @@ from softflow.studies.table1 import table1_references
 
 DATA_SIZE = {
     "ci": dict(
-        sizes=(50, 200),
+        sizes=(25, 100),
         models=("mlp", "mlp-physical"),
         seeds=(0,),
         train=FIXED_BUDGET["ci"],
