@@ -1,12 +1,15 @@
 """The README's test command on a fresh clone, as CI runs it (make bench-setup): this commit
 cloned into a scratch folder (no .venv, no data/), then `make venv` and `make test` timed one
 after the other. The venv's time includes pip's download cache where the machine has one
-(CI's machines start without). Writes figures/bench/fresh_clone.csv; run it with the cores free.
+(CI's machines start without). Writes figures/bench/fresh_clone.csv, and the two logs to
+build/bench/ (PYTEST_ADDOPTS=--durations=40 puts each lane's slowest tests there); run it with
+the cores free.
 """
 
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -30,6 +33,10 @@ def main():
         venv, venv_code = timed(["make", "venv"], clone, Path(scratch) / "venv.log")
         test, test_code = timed(["make", "test"], clone, Path(scratch) / "test.log")
         tail = (Path(scratch) / "test.log").read_text()[-3000:]
+        logs = REPO / "build" / "bench"
+        logs.mkdir(parents=True, exist_ok=True)
+        for name in ("venv.log", "test.log"):
+            shutil.copy(Path(scratch) / name, logs / f"fresh_clone_{name}")
     results = dict(
         venv_minutes=venv / 60,
         test_minutes=test / 60,
