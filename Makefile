@@ -44,8 +44,7 @@ NBVAL := --nbval --nbval-current-env --nbval-sanitize-with tests/nbval_sanitize.
 LAST := notebooks/07_comparison_tables.ipynb
 LANE_A := notebooks/06_hardware_replay.ipynb notebooks/10_closed_loop.ipynb notebooks/13_recorded_runs.ipynb
 LANE_B := $(filter-out $(LANE_A) $(LAST),$(NOTEBOOKS))
-TESTS_B := tests/test_recorded_study.py tests/test_friction.py tests/test_shipped_rows.py tests/test_loop.py \
-	tests/test_twin_recordings.py
+TESTS_B := tests/test_recorded_study.py tests/test_friction.py tests/test_shipped_rows.py tests/test_loop.py
 test: export OMP_NUM_THREADS = 1
 test: export OPENBLAS_NUM_THREADS = 1
 # glibc gives a freed large array back to the system and faults its pages in again at the next
