@@ -2,8 +2,7 @@
 cloned into a scratch folder (no .venv, no data/), then `make venv` and `make test` timed one
 after the other. The venv's time includes pip's download cache where the machine has one
 (CI's machines start without). Writes figures/bench/fresh_clone.csv, and the two logs to
-build/bench/ (PYTEST_ADDOPTS=--durations=40 puts each lane's slowest tests there); run it with
-the cores free.
+build/bench/ (the test log lists each lane's 40 slowest tests); run it with the cores free.
 """
 
 from __future__ import annotations
@@ -22,7 +21,8 @@ from results_file import REPO, write_results
 def timed(command: list[str], cwd: Path, log: Path) -> tuple[float, int]:
     start = time.perf_counter()
     with open(log, "w") as out:
-        code = subprocess.run(command, cwd=cwd, stdout=out, stderr=subprocess.STDOUT, env=dict(os.environ, CI="true"))
+        env = dict(os.environ, CI="true", PYTEST_ADDOPTS="--durations=40")
+        code = subprocess.run(command, cwd=cwd, stdout=out, stderr=subprocess.STDOUT, env=env)
     return time.perf_counter() - start, code.returncode
 
 
