@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 from distributed import Client, LocalCluster
 
-from softflow import cli
+from softflow import cli, profiles
 from softflow.studies import sweep
 from softflow.studies.study import Study
 
@@ -258,3 +258,20 @@ def test_shipped_rows_are_the_committed_csv_and_nothing_else(tmp_path, monkeypat
     assert sweep.shipped_rows("smoke", "paper").to_dict("records") == [{"key": "a", "score": 1.5}]
     with pytest.raises(ValueError, match="study"):
         sweep.shipped_rows("no-such-study", "paper")
+
+
+def test_a_profile_with_other_data_keys_its_rows_anew(monkeypatch):
+    """Rows made on one dataset are never served for another: the profile's data knobs (and the
+    identification run's length) are in every cell's key; a knob no study reads is not."""
+    cell = sweep.STUDIES["table1"].cells("ci")[0]
+    today = sweep.cell_key("table1", cell, "ci", "cpu")
+    ci = profiles.get_profile("ci")
+    for changed, new_key in [
+        (dict(n_episodes=ci.n_episodes + 1), True),
+        (dict(episode_seconds=2 * ci.episode_seconds), True),
+        (dict(seed=ci.seed + 1), True),
+        (dict(identification_seconds=2 * ci.identification_seconds), True),
+        (dict(bench_episodes=ci.bench_episodes + 1), False),  # notebook 01's timing only
+    ]:
+        monkeypatch.setitem(profiles.PROFILES, "ci", dataclasses.replace(ci, **changed))
+        assert (sweep.cell_key("table1", cell, "ci", "cpu") != today) == new_key, changed

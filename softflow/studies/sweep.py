@@ -87,12 +87,15 @@ def connect(scheduler_file: str | None = None, scheduler: str | None = None, wor
 
 
 def cell_key(study: str, cell: dict, profile_name: str, device: str) -> str:
-    """What a cached row depends on: the cell, the profile, the resolved arguments and budgets
-    of the cell's models, the study's version and whether it trained on a CPU or a GPU (GPU
-    arithmetic differs in the last bits)."""
+    """What a cached row depends on: the cell, the profile's name and the knobs that make its
+    data (a changed dataset recomputes a row instead of serving one made on the old data), the
+    resolved arguments and budgets of the cell's models, the study's version and whether it
+    trained on a CPU or a GPU (GPU arithmetic differs in the last bits)."""
+    profile = get_profile(profile_name)
     spec = dict(
         cell=cell,
         profile=profile_name,
+        data=dict(profile.data_spec, identification_seconds=profile.identification_seconds),
         models=STUDIES[study].models(cell, profile_name),
         version=STUDIES[study].version,
         device_class="cpu" if device == "cpu" else "gpu",
