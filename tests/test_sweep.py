@@ -38,6 +38,15 @@ def client(scheduler_file):
         yield client
 
 
+@pytest.fixture
+def sweep_dirs(tmp_path, monkeypatch):
+    """The sweep cache (returned) and the shipped rows in ``tmp_path``: a test never reads or
+    writes the committed rows or this machine's cache."""
+    monkeypatch.setattr(sweep, "SWEEPS_DIR", tmp_path / "cache")
+    monkeypatch.setattr(sweep, "SHIPPED_RESULTS", tmp_path / "shipped")
+    return tmp_path / "cache"
+
+
 def _flaky_cells(profile_name):
     return [
         dict(study="flaky", model="none", seed=seed, condition=condition)
@@ -92,17 +101,15 @@ def test_rerun_computes_nothing_and_resumes_a_missing_cell(tmp_path, monkeypatch
     pd.testing.assert_frame_equal(measured(first.rows), measured(resumed.rows))
 
 
-def test_failing_cell_is_named_and_the_others_return(client, tmp_path, monkeypatch, capsys):
+def test_failing_cell_is_named_and_the_others_return(client, sweep_dirs, monkeypatch, capsys):
     monkeypatch.setitem(sweep.STUDIES, "flaky", Study(_flaky_cells, _flaky_run))
-    result = sweep.run_sweep("flaky", "ci", client=client, device="cpu", root=tmp_path, progress=False)
+    result = sweep.run_sweep("flaky", "ci", client=client, device="cpu", root=sweep_dirs, progress=False)
     assert result.failures == [sweep.Failure(_flaky_cells("ci")[1], "RuntimeError: cell exploded")]
     assert result.rows["score"].tolist() == [0, 20]
     assert pd.read_csv(result.csv)["seed"].tolist() == [0, 2]
 
     # The CLI on the same cluster by address: the good rows come from the cache, the bad cell
     # runs again, is named on stderr, and the exit status says the sweep is incomplete.
-    monkeypatch.setattr(sweep, "SWEEPS_DIR", tmp_path)
-    monkeypatch.setattr(sweep, "SHIPPED_RESULTS", tmp_path / "shipped")  # never the committed rows
     with pytest.raises(SystemExit) as exit:
         cli.main(["sweep", "flaky", "--profile", "ci", "--scheduler", client.scheduler.address, "--device", "cpu"])
     assert exit.value.code == 1
@@ -111,12 +118,10 @@ def test_failing_cell_is_named_and_the_others_return(client, tmp_path, monkeypat
     assert "2 cached" in out and out.strip().splitlines()[-1] == str(result.csv)
 
 
-def test_cli_runs_on_a_cluster_through_its_scheduler_file(client, scheduler_file, tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(sweep, "SWEEPS_DIR", tmp_path / "sweeps")
-    monkeypatch.setattr(sweep, "SHIPPED_RESULTS", tmp_path / "shipped")  # never the committed rows
+def test_cli_runs_on_a_cluster_through_its_scheduler_file(client, scheduler_file, sweep_dirs, capsys):
     cli.main(["sweep", "smoke", "--profile", "ci", "--scheduler-file", str(scheduler_file), "--device", "cpu"])
     last = capsys.readouterr().out.strip().splitlines()[-1]
-    assert last == str(tmp_path / "sweeps" / "smoke-ci.csv")
+    assert last == str(sweep_dirs / "smoke-ci.csv")
     table = pd.read_csv(last)
     assert table["u_rmse"].notna().all() and table["u_rmse"].gt(0).all() and len(table) >= 2
 
@@ -129,11 +134,9 @@ def _per_reference_run(cell, profile_name, device, workdir, key):
     return [dict(reference=f"R{r}", score=cell["seed"] + r / 4) for r in range(3)]
 
 
-def test_cells_with_several_rows_ship_and_read_back_from_the_shipped_csv(tmp_path, monkeypatch):
+def test_cells_with_several_rows_ship_and_read_back_from_the_shipped_csv(tmp_path, sweep_dirs, monkeypatch):
     """A paper-profile sweep writes its rows to the shipped CSV too; on a fresh clone (no
     cache) those rows count as cached, unless the sweep is told to recompute them."""
-    monkeypatch.setattr(sweep, "SWEEPS_DIR", tmp_path / "cache")
-    monkeypatch.setattr(sweep, "SHIPPED_RESULTS", tmp_path / "shipped")
     monkeypatch.setitem(sweep.STUDIES, "multi", Study(_per_reference_cells, _per_reference_run))
     first = sweep.run_sweep("multi", "paper", client=None, device="cpu", progress=False)
     assert first.rows["score"].tolist() == [0, 0.25, 0.5, 1, 1.25, 1.5]
@@ -141,7 +144,7 @@ def test_cells_with_several_rows_ship_and_read_back_from_the_shipped_csv(tmp_pat
     shipped = tmp_path / "shipped" / "multi-paper.csv"
     pd.testing.assert_frame_equal(pd.read_csv(shipped), pd.read_csv(first.csv))
 
-    for cached in (tmp_path / "cache" / "multi").glob("*.json"):
+    for cached in (sweep_dirs / "multi").glob("*.json"):
         cached.unlink()  # a fresh clone: only the shipped CSV
     monkeypatch.setitem(sweep.STUDIES, "multi", Study(_per_reference_cells, _must_not_run))
     fresh = sweep.run_sweep("multi", "paper", client=None, device="cpu", progress=False)
@@ -152,24 +155,22 @@ def test_cells_with_several_rows_ship_and_read_back_from_the_shipped_csv(tmp_pat
     pd.testing.assert_frame_equal(pd.read_csv(shipped), first.rows)  # not replaced by nothing
 
 
-def test_a_sweep_that_must_not_compute_returns_the_rows_present_and_writes_nothing(tmp_path, monkeypatch):
+def test_a_sweep_that_must_not_compute_returns_the_rows_present_and_writes_nothing(tmp_path, sweep_dirs, monkeypatch):
     """compute_missing=False (a notebook showing a study of hours): no cell runs, the rows present
     come back in grid order with the number of cells that have none, and no CSV is written (a
     sweep still running elsewhere owns them); the shipped paper rows count as present."""
-    monkeypatch.setattr(sweep, "SWEEPS_DIR", tmp_path / "cache")
-    monkeypatch.setattr(sweep, "SHIPPED_RESULTS", tmp_path / "shipped")
     monkeypatch.setitem(sweep.STUDIES, "multi", Study(_per_reference_cells, _must_not_run))
     empty = sweep.run_sweep("multi", "paper", client=None, device="cpu", progress=False, compute_missing=False)
     assert (len(empty.rows), empty.cached, empty.computed, empty.missing, empty.failures) == (0, 0, 0, 2, [])
-    assert not (tmp_path / "cache").exists() and not (tmp_path / "shipped").exists()
+    assert not sweep_dirs.exists() and not (tmp_path / "shipped").exists()
 
     monkeypatch.setitem(sweep.STUDIES, "multi", Study(_per_reference_cells, _per_reference_run))
     full = sweep.run_sweep("multi", "paper", client=None, device="cpu", progress=False)
     assert full.missing == 0
     shipped, csv = tmp_path / "shipped" / "multi-paper.csv", full.csv
-    (tmp_path / "cache" / "multi" / f"{full.rows['key'][0]}.json").unlink()
+    (sweep_dirs / "multi" / f"{full.rows['key'][0]}.json").unlink()
     shipped.write_text(pd.read_csv(shipped).iloc[3:].to_csv(index=False))  # only the second cell's rows
-    (tmp_path / "cache" / "multi" / f"{full.rows['key'][3]}.json").unlink()  # ... which only ship
+    (sweep_dirs / "multi" / f"{full.rows['key'][3]}.json").unlink()  # ... which only ship
     before = {path: path.read_bytes() for path in (shipped, csv)}
     monkeypatch.setitem(sweep.STUDIES, "multi", Study(_per_reference_cells, _must_not_run))
     part = sweep.run_sweep("multi", "paper", client=None, device="cpu", progress=False, compute_missing=False)
@@ -185,23 +186,21 @@ def _gappy_run(cell, profile_name, device, workdir, key):  # the first row lacks
     ]
 
 
-def test_reading_the_shipped_rows_leaves_the_shipped_csv_as_it_was(tmp_path, monkeypatch):
+def test_reading_the_shipped_rows_leaves_the_shipped_csv_as_it_was(tmp_path, sweep_dirs, monkeypatch):
     """make reproduce on a fresh clone reads the shipped rows: the committed CSV must not change,
     not even in its column order or the last digit of a float."""
-    monkeypatch.setattr(sweep, "SWEEPS_DIR", tmp_path / "cache")
-    monkeypatch.setattr(sweep, "SHIPPED_RESULTS", tmp_path / "shipped")
     monkeypatch.setitem(sweep.STUDIES, "gappy", Study(_per_reference_cells, _gappy_run))
     sweep.run_sweep("gappy", "paper", client=None, device="cpu", progress=False)
     shipped = tmp_path / "shipped" / "gappy-paper.csv"
     committed = shipped.read_bytes()
     assert committed.splitlines()[0].endswith(b",reference,mae,score")
 
-    for cached in (tmp_path / "cache" / "gappy").glob("*.json"):
+    for cached in (sweep_dirs / "gappy").glob("*.json"):
         cached.unlink()  # a fresh clone: only the shipped CSV
     monkeypatch.setitem(sweep.STUDIES, "gappy", Study(_per_reference_cells, _must_not_run))
     fresh = sweep.run_sweep("gappy", "paper", client=None, device="cpu", progress=False)
     assert fresh.computed == 0 and shipped.read_bytes() == committed
-    assert (tmp_path / "cache" / "gappy-paper.csv").read_bytes() == committed
+    assert (sweep_dirs / "gappy-paper.csv").read_bytes() == committed
 
 
 def test_bad_input_is_refused():
@@ -223,19 +222,17 @@ def test_bad_input_is_refused():
         cli.main(["sweep", "smoke", "--profile", "ci", "--workers", "0"])
 
 
-def test_where_computes_only_the_cells_asked_for(client, tmp_path, monkeypatch, capsys):
+def test_where_computes_only_the_cells_asked_for(client, sweep_dirs, monkeypatch, capsys):
     """A study of hours can run its cheap cells first: ``where`` picks cells by their fields (as
     text, as a command line gives them); the others stay missing, and a later run completes it."""
     monkeypatch.setitem(sweep.STUDIES, "flaky", Study(cells=_flaky_cells, run_cell=_flaky_run))
     picked = sweep.run_sweep(
-        "flaky", "ci", client=None, device="cpu", root=tmp_path, progress=False, where={"seed": ["0", "2"]}
+        "flaky", "ci", client=None, device="cpu", root=sweep_dirs, progress=False, where={"seed": ["0", "2"]}
     )
     assert (picked.computed, picked.missing, picked.failures) == (2, 1, [])
     assert picked.rows["seed"].tolist() == [0, 2] and picked.rows["score"].tolist() == [0, 20]
     with pytest.raises(ValueError, match=r"no cell of this study has the field\(s\) \['runs'\]"):
-        sweep.run_sweep("flaky", "ci", client=None, device="cpu", root=tmp_path, where={"runs": ["60"]})
-    monkeypatch.setattr(sweep, "SWEEPS_DIR", tmp_path)
-    monkeypatch.setattr(sweep, "SHIPPED_RESULTS", tmp_path / "shipped")  # never the committed rows
+        sweep.run_sweep("flaky", "ci", client=None, device="cpu", root=sweep_dirs, where={"runs": ["60"]})
     address = client.scheduler.address
     cli.main(
         ["sweep", "flaky", "--profile", "ci", "--scheduler", address, "--device", "cpu", "--where", "condition=ok"]
@@ -245,13 +242,10 @@ def test_where_computes_only_the_cells_asked_for(client, tmp_path, monkeypatch, 
         cli.main(["sweep", "flaky", "--profile", "ci", "--where", "seed"])
 
 
-def test_shipped_rows_are_the_committed_csv_and_nothing_else(tmp_path, monkeypatch):
+def test_shipped_rows_are_the_committed_csv_and_nothing_else(tmp_path, sweep_dirs):
     """A notebook that shows another notebook's study reads its shipped rows only: what this
     machine has computed (data/sweeps/) never changes its output."""
-    monkeypatch.setattr(sweep, "SHIPPED_RESULTS", tmp_path / "shipped")
-    monkeypatch.setattr(sweep, "SWEEPS_DIR", tmp_path / "cache")
-    cache = tmp_path / "cache"  # an explicit root: rows in the cache, none shipped
-    sweep.run_sweep("smoke", "ci", client=None, device="cpu", root=cache, progress=False)
+    sweep.run_sweep("smoke", "ci", client=None, device="cpu", root=sweep_dirs, progress=False)  # cached, none shipped
     assert sweep.shipped_rows("smoke", "ci").empty
     (tmp_path / "shipped").mkdir()
     pd.DataFrame({"key": ["a"], "score": [1.5]}).to_csv(tmp_path / "shipped" / "smoke-paper.csv", index=False)
