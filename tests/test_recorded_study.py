@@ -11,6 +11,7 @@ from collections import Counter
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import assert_like_shipped
 
 from softflow import hardware
 from softflow.control import planning
@@ -131,6 +132,10 @@ def test_the_ci_study_gives_the_pre_registered_rows(swept):
     simulated = rows[rows.trained_on == "simulator"]
     assert simulated[TRACKING].notna().all().all() and simulated[TRAINING].isna().all().all()
     assert pd.read_csv(result.csv).shape == rows.shape
+    # the recordings cells as they ship (the simulator cell here trains on fewer episodes than its shipped row)
+    shipped = sweep.shipped_rows("recorded", "ci").astype({"key": str}).set_index("key")
+    learnt = learnt.astype({"key": str}).set_index("key")
+    assert_like_shipped(learnt.reset_index(), shipped.loc[learnt.index].reset_index())
 
 
 def test_the_runs_are_recorded_once_per_folder_under_the_sweep(swept):
