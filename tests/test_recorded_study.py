@@ -134,8 +134,7 @@ def test_the_ci_study_gives_the_pre_registered_rows(swept):
     assert pd.read_csv(result.csv).shape == rows.shape
     # the recordings cells as they ship (the simulator cell here trains on fewer episodes than its shipped row)
     shipped = sweep.shipped_rows("recorded", "ci").astype({"key": str}).set_index("key")
-    learnt = learnt.astype({"key": str}).set_index("key")
-    assert_like_shipped(learnt.reset_index(), shipped.loc[learnt.index].reset_index())
+    assert_like_shipped(learnt.reset_index(drop=True), shipped.loc[learnt.key.astype(str)].reset_index())
 
 
 def test_the_runs_are_recorded_once_per_folder_under_the_sweep(swept):
