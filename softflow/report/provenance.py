@@ -22,7 +22,11 @@ def recorded_wall_times(run_dir: Path, file: Path, running: str = "07") -> pd.Da
     rows of ``file`` (a CSV, written back), the others keep theirs. So a run of a few notebooks
     never drops the measured times of the rest, and each time says what it was measured on."""
     file, minutes = Path(file), notebook_wall_times(run_dir, running)
-    kept = pd.read_csv(file, index_col="notebook") if file.is_file() else pd.DataFrame(columns=WALL_TIME_COLUMNS)
+    kept = (
+        pd.read_csv(file, index_col="notebook", dtype={"commit": str})
+        if file.is_file()
+        else pd.DataFrame(columns=WALL_TIME_COLUMNS)
+    )
     if len(minutes):
         stamp = dict(machine=machine(), date=pd.Timestamp.now(tz="UTC").strftime("%Y-%m-%d"), commit=commit())
         fresh = pd.DataFrame([dict(minutes=m, **stamp) for m in minutes], index=minutes.index)
