@@ -142,13 +142,23 @@ def test_a_sliding_cable_obeys_the_capstan_bound():
 
 @pytest.fixture(scope="module")
 def loops():
-    """hysteresis_loop of the vertical twin for friction coefficients 0 (TYPICAL_GAP), 0.15
-    (FRICTION_GAP) and 0.3, the rest of the gap typical: about a minute each (mu = 0.05, 0.83 %
-    of the reach when measured, is in docs/assumptions.md, not here: a fourth minute)."""
-    return {
-        mu: hardware.hysteresis_loop(dataclasses.replace(hardware.TYPICAL_GAP, cable_friction=mu))
-        for mu in (0.0, 0.15, 0.3)
-    }
+    """The vertical twin's hysteresis loops for friction coefficients 0 (TYPICAL_GAP), 0.15
+    (FRICTION_GAP) and 0.3, the rest of the gap typical, in one batch (mu = 0.05, 0.83 % of the
+    reach when measured, is in docs/assumptions.md)."""
+    return hardware.hysteresis_loops(hardware.TYPICAL_GAP, (0.0, 0.15, 0.3))
+
+
+def test_loops_in_one_batch_are_the_loops_drawn_alone_bit_for_bit():
+    """A rod without friction in a batch with friction takes the capstan's arithmetic, whose
+    mean factor is then exactly 1: the frictionless plant's tension, to the bit."""
+    period = 0.4  # s: short, the bits are what is compared
+    batched = hardware.hysteresis_loops(hardware.TYPICAL_GAP, (0.3, 0.0), period=period)
+    for mu, loop in batched.items():
+        alone = hardware.hysteresis_loop(dataclasses.replace(hardware.TYPICAL_GAP, cable_friction=mu), period=period)
+        for field in ("u", "gap", "down", "up"):
+            np.testing.assert_array_equal(getattr(loop, field), getattr(alone, field))
+        assert (loop.width, loop.reach) == (alone.width, alone.reach)
+    assert not np.array_equal(batched[0.3].gap, batched[0.0].gap)  # each rod rubbed with its own friction
 
 
 def test_without_friction_there_is_no_loop(loops):
@@ -174,3 +184,9 @@ def test_hysteresis_loop_refuses_what_it_cannot_cycle():
         hardware.hysteresis_loop(hardware.NO_GAP, period=0.01)
     with pytest.raises(ValueError, match="two-input rod"):
         hardware.hysteresis_loop(hardware.NO_GAP, robot=TWO_SEGMENT_ROD)
+    with pytest.raises(ValueError, match="each once"):
+        hardware.hysteresis_loops(hardware.NO_GAP, (0.1, 0.1))
+    with pytest.raises(ValueError, match="coefficients >= 0"):
+        CablePlant(HW_ROBOT, "vertical", cable_friction=[0.1, -0.1])
+    with pytest.raises(ValueError, match="a friction for each of 2 rods; got 3"):
+        CablePlant(HW_ROBOT, "vertical", cable_friction=[0.1, 0.2]).reset(3)

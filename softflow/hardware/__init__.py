@@ -20,6 +20,7 @@ EXPORTS = {
         "capstan_tensions",
         "HysteresisLoop",
         "hysteresis_loop",
+        "hysteresis_loops",
         "calibrate_sag",
         "cable_commands",
         "rest_command",

@@ -235,7 +235,10 @@ class CablePlant:
         stiffness: float = CABLE_STIFFNESS,
         pretension: float = PRETENSION,
         substeps: int = 4,
+        cable_friction=None,
     ):
+        """``cable_friction``: one coefficient per rod (B,) in place of the gap's, to replay one
+        gap at several frictions in one batch (a batch of B rods then)."""
         self.robot, self.gap, self.stiffness, self.pretension, self.substeps = (
             robot,
             gap,
@@ -243,6 +246,13 @@ class CablePlant:
             pretension,
             substeps,
         )
+        if cable_friction is None:
+            self.friction = gap.cable_friction
+        else:
+            friction, _ = as_real_array(cable_friction, "cable_friction", (None,))
+            if (friction < 0).any():
+                raise ValueError(f"cable_friction must hold coefficients >= 0; got {friction.tolist()}")
+            self.friction = friction[:, None]  # (B, 1): per rod, across its cables
         self.sim = Simulator(gap.plant_robot(robot), gravity, dt=DT / substeps, substeps=1, threads=1)
         self.slack = np.random.default_rng(gap.seed).uniform(0.0, gap.slack, robot.n_cables)
         # the anchor group (an input pair) of each cable: its turning is that group's bend
@@ -256,6 +266,8 @@ class CablePlant:
     def reset(self, batch: int = 1) -> None:
         """``batch`` rods at rest, every motor holding the command of the rest pose (its
         pretension, less any slack), the cables' friction relaxed: the state ``step`` advances."""
+        if np.ndim(self.friction) and len(self.friction) != batch:
+            raise ValueError(f"this plant has a friction for each of {len(self.friction)} rods; got {batch} rods")
         sim = self.sim
         self.q, self.qd = np.repeat(sim.rest_q()[None], batch, 0), np.zeros((batch, sim.nq))
         self.motor = np.repeat(rest_command(sim, self.stiffness, self.pretension)[None], batch, 0)
@@ -277,7 +289,7 @@ class CablePlant:
         the mean along each cable (``mean``, what bends the rod). After ``reset``."""
         base = self.stiffness * np.maximum(self._cable_stretch(self.motor, self.q), 0.0)
         turning = self._turning(self.sim.bend_angles(self.q))
-        anchored, mean = capstan_tensions(base, turning, self.gap.cable_friction, self.friction_state)
+        anchored, mean = capstan_tensions(base, turning, self.friction, self.friction_state)
         return dict(base=base, anchored=anchored, mean=mean)
 
     def _rubbing_tension(self, q):
@@ -289,7 +301,7 @@ class CablePlant:
         self.friction_state = dahl_state(self.friction_state, sliding - self.sliding, self.gap.sliding_length)
         self.sliding = sliding
         base = self.stiffness * np.maximum(self.motor + path - self.slack, 0.0)  # (B, C), at the motors
-        return capstan_tensions(base, self._turning(angles), self.gap.cable_friction, self.friction_state)[1]
+        return capstan_tensions(base, self._turning(angles), self.friction, self.friction_state)[1]
 
     def step(self, command) -> np.ndarray:
         """Hold motor commands (B, C) in m for DT: the rods move; returns the mean cable
@@ -299,7 +311,7 @@ class CablePlant:
         tensions = np.zeros_like(self.motor)
         for _ in range(self.substeps):
             self.motor = self.motor + follow * (command - self.motor)
-            if self.gap.cable_friction > 0:
+            if np.any(self.friction > 0):  # a rod without friction in the batch: its mean factor is exactly 1
                 tension = self._rubbing_tension(self.q + 0.5 * h * self.qd)
             else:  # frictionless cables: the arithmetic of the plant before friction, bit for bit
                 tension = self.stiffness * np.maximum(self._cable_stretch(self.motor, self.q + 0.5 * h * self.qd), 0.0)
@@ -385,12 +397,38 @@ def hysteresis_loop(
     lag) puts the branches tau du/dt apart, which halves when the period doubles, so the
     gap 2 g(period) - g(period / 2) keeps only what does not depend on the rate: the friction's.
     What is left of the rate, the rod's ringing, is 0.1-0.2 % of the reach at 20 s."""
+    friction = gap.cable_friction
+    return hysteresis_loops(gap, [friction], robot=robot, gravity=gravity, period=period, u_max=u_max)[friction]
+
+
+def hysteresis_loops(
+    gap: RealityGap,
+    frictions,
+    *,
+    robot: Robot = HW_ROBOT,
+    gravity: str = "vertical",
+    period: float = LOOP_PERIOD,
+    u_max: float = U_MAX,
+) -> dict[float, HysteresisLoop]:
+    """``hysteresis_loop`` of ``gap`` with each cable friction coefficient of ``frictions`` in
+    its place: {mu: loop}, every plant in one batch (a replay costs per step, hardly per rod),
+    each loop the one ``hysteresis_loop`` draws alone, bit for bit."""
     if robot.n_inputs != 2:
         raise ValueError(f"hysteresis_loop cycles u1 of a two-input rod; {robot.name!r} has {robot.n_inputs} inputs")
     if not (np.isfinite(period) and period >= 4 * DT and np.isfinite(u_max) and u_max > 0):
         raise ValueError(f"need a period of at least {4 * DT} s and u_max > 0 N; got {period!r} s, {u_max!r} N")
-    u, commands = _loop_commands(robot, gravity, float(period), float(u_max))
-    lateral = CablePlant(robot, gravity, gap).replay(commands)["states"][:, 1:, 1]  # (4, T), after each u_t
+    frictions = [float(mu) for mu in frictions]
+    if not frictions or len(set(frictions)) < len(frictions):
+        raise ValueError(f"frictions must hold at least one coefficient, each once; got {frictions}")
+    u, commands = _loop_commands(robot, gravity, float(period), float(u_max))  # (4, T, 2), (4, T, C)
+    per_rod = np.repeat(frictions, len(commands))  # (4 F,): the four runs at each friction
+    plant = CablePlant(robot, gravity, gap, cable_friction=per_rod)
+    lateral = plant.replay(np.tile(commands, (len(frictions), 1, 1)))["states"][:, 1:, 1]  # (4 F, T), after each u_t
+    return {mu: _loop(u, runs, period, u_max) for mu, runs in zip(frictions, np.split(lateral, len(frictions)))}
+
+
+def _loop(u, lateral, period: float, u_max: float) -> HysteresisLoop:
+    """The loop of the four runs' lateral tips (4, T) against their u1 (4, T, 2)."""
     grid = np.linspace(-u_max, u_max, 41)[1:-1]  # (K,) inside the turns, where the branches meet
     gaps, branches = [], []
     for first, cycle in ((0, period / 2), (2, period)):
