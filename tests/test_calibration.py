@@ -7,6 +7,7 @@ import pytest
 
 from softflow import hardware
 from softflow.hardware.calibration import RAMP_SECONDS, Calibration
+from softflow.rod import statics
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import DT, HW_ROBOT
 
@@ -17,6 +18,15 @@ GAP = hardware.RealityGap(youngs_modulus=-0.15, density=0.10)
 def horizontal():
     model = Simulator(HW_ROBOT, "horizontal")
     return model, Calibration(model, Simulator(GAP.plant_robot(HW_ROBOT), "horizontal"))
+
+
+def test_the_calibrated_rods_table_ships(horizontal, tmp_path, monkeypatch):
+    """The identified rod's static table (3 721 static solves) ships in cache/: found under
+    today's key, it is read, not built (tests/test_sim.py builds one)."""
+    monkeypatch.setattr(statics, "DATA_DIR", tmp_path)
+    _, calibration = horizontal
+    calibration.rod.static_table()
+    assert not any(tmp_path.iterdir())
 
 
 def test_a_rod_identified_as_the_model_changes_nothing():

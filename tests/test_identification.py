@@ -6,6 +6,7 @@ import pytest
 
 from softflow import hardware
 from softflow.hardware import identification
+from softflow.rod import statics
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import DT, HW_ROBOT
 
@@ -80,3 +81,7 @@ def test_the_shipped_ci_identification_is_what_its_key_computes(tmp_path, monkey
     predicted = np.stack([np.interp(times[seen], t, states[:, k]) for k in range(3)], -1)
     rmse_mm = 1e3 * np.sqrt(np.mean(np.sum((predicted - tracked[seen]) ** 2, -1)))
     assert rmse_mm == pytest.approx(fit.rmse_mm, rel=1e-6)
+    # the identified rod's static table (notebook 10 calibrates with it) ships too: read, not built
+    monkeypatch.setattr(statics, "DATA_DIR", tmp_path / "data")
+    Simulator(fit.gap.plant_robot(HW_ROBOT), "vertical").static_table()
+    assert not (tmp_path / "data").exists()

@@ -6,10 +6,12 @@ import numpy as np
 import pytest
 
 from softflow import data
+from softflow.data import references
 from softflow.data.references import Reference
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import SIM_ROBOT
 from softflow.studies import protocol
+from softflow.studies.table1 import TABLE1
 
 
 @pytest.fixture(scope="module")
@@ -68,6 +70,14 @@ def test_coverage_is_one_on_training_states_and_zero_far_away(dataset):
     inside = Reference("inside", "shape", states, np.ones(len(states), bool))
     far = Reference("far", "shape", states + np.array([0, 1.0, 0, 0, 0, 0]), np.ones(len(states), bool))
     assert protocol.coverage([inside, far], dataset).tolist() == [1.0, 0.0]
+
+
+def test_the_ci_protocol_shapes_ship(sim, tmp_path, monkeypatch):
+    """The shapes of the ci protocol study's speed cells ship in cache/ (test_shipped_rows runs
+    one of them): found under today's key, read, not built (the test below builds its own)."""
+    monkeypatch.setattr(references, "DATA_DIR", tmp_path)
+    shapes = protocol.shapes_at(sim, TABLE1["ci"]["shapes"], 0.5)
+    assert [r.name for r in shapes] == list(TABLE1["ci"]["shapes"]) and not any(tmp_path.iterdir())
 
 
 def test_shapes_at_a_speed_are_faster(sim):

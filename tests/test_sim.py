@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from softflow.data.excitation import sum_of_sines_excitation
-from softflow.rod import dynamics
+from softflow.rod import dynamics, statics
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import HW_ROBOT, SIM_ROBOT
 from softflow.rod.validation import (
@@ -126,6 +126,19 @@ def test_inverse_static_recovers_u(gravity):
     u = np.stack(np.meshgrid(grid, grid), -1).reshape(-1, 2)
     sim = Simulator(SIM_ROBOT, gravity=gravity)
     np.testing.assert_allclose(sim.inverse_static(sim.static_tip(u)), u, rtol=0, atol=1e-10)  # measured 5e-15 N
+
+
+def test_a_static_table_interpolates_the_equilibria_it_was_built_from(tmp_path, monkeypatch):
+    """Built here (the tables a fresh clone needs ship in cache/): at its nodes the splines give
+    the static solves exactly, between them within a micrometre (2e-8 m measured)."""
+    monkeypatch.setattr(statics, "DATA_DIR", tmp_path)
+    sim = Simulator(HW_ROBOT, "horizontal")
+    table = statics.StaticTable(sim, u_range=1.0, step=0.5)  # 5 x 5 equilibria
+    assert [path.name.split("-")[:2] for path in tmp_path.iterdir()] == [["static", "table"]]
+    nodes = np.array([[-1.0, 0.5], [0.0, 0.0], [1.0, -1.0]])
+    np.testing.assert_allclose(table.tip(nodes)[0], sim.static_tip(nodes), rtol=0, atol=1e-12)
+    between = np.array([[-0.75, 0.25], [0.3, -0.6]])
+    assert np.abs(table.tip(between)[0] - sim.static_tip(between)).max() < 1e-6  # m
 
 
 def test_rollout_starts_at_rest_in_gravity_equilibrium():
