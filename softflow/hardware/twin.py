@@ -311,7 +311,7 @@ class CablePlant:
         tensions = np.zeros_like(self.motor)
         for _ in range(self.substeps):
             self.motor = self.motor + follow * (command - self.motor)
-            if np.any(self.friction > 0):  # a rod without friction in the batch: its mean factor is exactly 1
+            if np.any(self.friction > 0):  # every rod rubs; one with mu = 0 gets a mean factor of exactly 1
                 tension = self._rubbing_tension(self.q + 0.5 * h * self.qd)
             else:  # frictionless cables: the arithmetic of the plant before friction, bit for bit
                 tension = self.stiffness * np.maximum(self._cable_stretch(self.motor, self.q + 0.5 * h * self.qd), 0.0)
