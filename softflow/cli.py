@@ -80,6 +80,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub.add_argument("models", nargs="+", metavar="MODEL", choices=sorted(MODELS), help=", ".join(sorted(MODELS)))
     _rod_options(sub)
     sub.set_defaults(robot=None, gravity=None)  # None: not given, so --recordings can refuse them
+    sub.add_argument("--device", default="auto", choices=sweep.DEVICES, help="auto: CUDA, else MPS, else CPU")
     sub.add_argument(
         "--ship",
         action="store_true",
@@ -254,7 +255,16 @@ def _train(args):
         )
     paths = []
     for name in args.models:
-        _, checkpoint = training.ensure_trained(name, profile, dataset, robot, gravity, ship=args.ship, progress=True)
+        _, checkpoint = training.ensure_trained(
+            name,
+            profile,
+            dataset,
+            robot,
+            gravity,
+            ship=args.ship,
+            device=sweep.resolve_device(args.device),
+            progress=True,
+        )
         print(
             f"{name}: {checkpoint['epochs_run']} epochs, best validation loss {checkpoint['best_val']:.3g}, "
             f"{checkpoint['wall_seconds'] / 60:.1f} min of training"

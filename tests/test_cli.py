@@ -160,8 +160,9 @@ def test_train_prints_the_checkpoint_it_wrote_last(tmp_path, capsys, monkeypatch
     """The trainer replaced by one that writes a checkpoint record where the real one would."""
     monkeypatch.setattr(checkpoints, "TRAINED", tmp_path)
 
-    def fake_trainer(name, profile, dataset, robot, gravity, *, ship, progress):
+    def fake_trainer(name, profile, dataset, robot, gravity, *, ship, device, progress):
         assert not ship
+        assert device == "cpu"  # --device as given, resolved by the sweep's rule
         path = checkpoints.checkpoint_path(name, profile.name, rod_folder(robot, gravity))
         record = checkpoints.identity(name, None, profile.train_config(name), dataset.key)
         record.update(model={}, epochs_run=1, best_val=0.5, wall_seconds=6.0)
@@ -169,7 +170,7 @@ def test_train_prints_the_checkpoint_it_wrote_last(tmp_path, capsys, monkeypatch
         return None, record
 
     monkeypatch.setattr(cli.training, "ensure_trained", fake_trainer)
-    lines = run(capsys, "train", "--profile", "ci", "--robot", "hw", "mlp", "rf")
+    lines = run(capsys, "train", "--profile", "ci", "--robot", "hw", "--device", "cpu", "mlp", "rf")
     folder = tmp_path / "ci" / rod_folder(HW_ROBOT, "vertical")
     assert lines[-2:] == [str(folder / "mlp.pt"), str(folder / "rf.pt")]
     assert lines[0].startswith("mlp: 1 epochs")
