@@ -97,6 +97,14 @@ def test_an_interrupted_recording_resumes_to_the_same_files(recorded, monkeypatc
     assert [paths[0].stat().st_mtime_ns, paths[2].stat().st_mtime_ns] == [stamps[0], stamps[2]]  # kept, not rewritten
 
 
+def test_two_processes_record_the_files_one_process_records(tmp_path):
+    """Runs 0-8 span two chunks of simulation: shared between two processes, the same bytes."""
+    one = recorder.record_runs(tmp_path / "one", 9, 0.2, gravity="vertical", progress=False)
+    two = recorder.record_runs(tmp_path / "two", 9, 0.2, gravity="vertical", workers=2, progress=False)
+    assert [path.name for path in two] == [path.name for path in one]
+    assert [path.read_bytes() for path in two] == [path.read_bytes() for path in one]
+
+
 def test_runs_of_other_settings_are_not_mixed_into_a_folder(recorded, tmp_path):
     folder = recorded[0]
     with pytest.raises(ValueError, match=r"other settings \(seconds differ"):
@@ -116,6 +124,7 @@ def test_runs_of_other_settings_are_not_mixed_into_a_folder(recorded, tmp_path):
         (dict(dropped=1.0), r"dropped must be a share of frames in \[0, 1\)"),
         (dict(latency=-0.01), "latency must be a time >= 0 s"),
         (dict(gap="typical"), "gap must be a RealityGap"),
+        (dict(workers=0), "workers must be a whole number of processes >= 1"),
     ],
 )
 def test_bad_settings_say_what_was_expected(kwargs, message, tmp_path):

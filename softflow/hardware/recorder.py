@@ -25,10 +25,14 @@ from __future__ import annotations
 
 import json
 import math
+import multiprocessing
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from softflow.data.excitation import polynomial_excitation
@@ -69,13 +73,17 @@ def record_runs(
     seed: int = 0,
     latency: float = 0.0,
     dropped: float = 0.0,
+    workers: int = 1,
     progress: bool = True,
 ) -> list[Path]:
     """Record ``n_runs`` runs of ``seconds`` s each on the twin of ``robot`` (the hardware rod:
     the twin's cables, camera and gap are made for it) mounted as ``gravity`` says, across
     ``gap``, into ``folder`` (format: module docstring). Resumable: runs already in the folder
     are kept and skipped, and each run depends only on (seed, run), so an interrupted call,
-    rerun, writes the same files. Returns the paths of all ``n_runs`` files."""
+    rerun, writes the same files. ``workers`` > 1: the missing chunks are shared among that many
+    processes of one thread each (the same files as one process writes; a script calls it under
+    ``if __name__ == "__main__":``, as any process pool needs). Returns the paths of all
+    ``n_runs`` files."""
     if not (isinstance(n_runs, (int, np.integer)) and not isinstance(n_runs, bool) and n_runs >= 1):
         raise ValueError(f"n_runs must be a whole number of runs >= 1; got {n_runs!r}")
     if not (isinstance(seconds, (int, float)) and math.isfinite(seconds) and seconds >= 10 * DT):
@@ -90,7 +98,9 @@ def record_runs(
         raise ValueError(f"latency must be a time >= 0 s; got {latency!r}")
     if not (isinstance(dropped, (int, float)) and 0 <= dropped < 1):
         raise ValueError(f"dropped must be a share of frames in [0, 1); got {dropped!r}")
-    model = Simulator(robot, gravity)  # checks gravity
+    if not (isinstance(workers, (int, np.integer)) and not isinstance(workers, bool) and workers >= 1):
+        raise ValueError(f"workers must be a whole number of processes >= 1; got {workers!r}")
+    Simulator(robot, gravity)  # checks gravity
     folder = Path(folder)
     settings = dict(
         version=RECORDER_VERSION,
@@ -107,15 +117,47 @@ def record_runs(
     _claim(folder, settings)
     paths = [run_path(folder, run) for run in range(n_runs)]
     missing = [run for run, path in enumerate(paths) if not path.is_file()]
-    plant, camera = CablePlant(robot, gravity, gap), twin_camera(model, gap)
+    rig = _Rig(folder, robot, gravity, gap, float(seconds), int(seed), float(latency), float(dropped))
+    chunks = [
+        [run for run in missing if run - run % CHUNK == first] for first in sorted({r - r % CHUNK for r in missing})
+    ]
     with tqdm(total=n_runs, initial=n_runs - len(missing), desc="recording", unit="run", disable=not progress) as bar:
-        for first in sorted({run - run % CHUNK for run in missing}):
-            chunk = _simulate(range(first, first + CHUNK), model, plant, seconds, seed)
-            for run in (run for run in missing if first <= run < first + CHUNK):
-                table = _film(chunk[run - first], plant, camera, latency, dropped)
-                write_text(paths[run], table.to_csv(index=False, float_format="%.6f"))
-                bar.update()
+        if workers == 1 or len(chunks) < 2:
+            for runs in chunks:
+                bar.update(rig.record(runs))
+        else:
+            spawn = multiprocessing.get_context("spawn")  # no fork of a parent's threads
+            with ProcessPoolExecutor(
+                min(workers, len(chunks)), spawn, initializer=threadpool_limits, initargs=(1,)
+            ) as pool:
+                for done in as_completed([pool.submit(rig.record, runs) for runs in chunks]):
+                    bar.update(done.result())
     return paths
+
+
+@dataclass(frozen=True)
+class _Rig:
+    """What a recording process needs to record runs of one folder (picklable, for workers)."""
+
+    folder: Path
+    robot: Robot
+    gravity: str
+    gap: RealityGap
+    seconds: float
+    seed: int
+    latency: float
+    dropped: float
+
+    def record(self, runs: list[int]) -> int:
+        """Simulate the chunk of ``runs`` (all in one chunk), film and write each; how many."""
+        model = Simulator(self.robot, self.gravity)
+        plant, camera = CablePlant(self.robot, self.gravity, self.gap), twin_camera(model, self.gap)
+        first = runs[0] - runs[0] % CHUNK
+        chunk = _simulate(range(first, first + CHUNK), model, plant, self.seconds, self.seed)
+        for run in runs:
+            table = _film(chunk[run - first], plant, camera, self.latency, self.dropped)
+            write_text(run_path(self.folder, run), table.to_csv(index=False, float_format="%.6f"))
+        return len(runs)
 
 
 def _claim(folder: Path, settings: dict) -> None:

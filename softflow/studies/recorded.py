@@ -206,9 +206,12 @@ def recording_settings(profile_name: str, gravity: str, gap: str, seed: int) -> 
     )
 
 
-def record(workdir: Path, profile_name: str, gravity: str, gap: str, seed: int, n_runs: int) -> list[Path]:
+def record(
+    workdir: Path, profile_name: str, gravity: str, gap: str, seed: int, n_runs: int, workers: int = 1
+) -> list[Path]:
     """The first ``n_runs`` runs of the folder of (profile, configuration, gap, seed), recorded
-    where missing (resumable: workers racing on a folder write the same files)."""
+    where missing by ``workers`` processes (resumable: workers racing on a folder write the same
+    files)."""
     settings = recording_settings(profile_name, gravity, gap, seed)
     folder = workdir / "recordings" / profile_name / f"{gravity}-{gap}-seed{seed}-{content_key(settings, 8)}"
     return recorder.record_runs(
@@ -221,22 +224,23 @@ def record(workdir: Path, profile_name: str, gravity: str, gap: str, seed: int, 
         seed=seed,
         latency=settings["latency"],
         dropped=settings["dropped"],
+        workers=workers,
         progress=False,
     )
 
 
-def record_grid(profile_name: str, workdir) -> None:
-    """Every folder the profile's grid trains or tests on, recorded in full one after another
-    (``workdir``: the sweep's, e.g. data/sweeps/recorded). Cells record what they lack
-    themselves, but workers that reach one folder together each record all of it: recording
-    first spares a cluster that (paper: about 6 CPU-hours for the four 60-minute folders and the
-    held-out runs)."""
+def record_grid(profile_name: str, workdir, workers: int = 1) -> None:
+    """Every folder the profile's grid trains or tests on, recorded in full one after another,
+    each by ``workers`` processes (``workdir``: the sweep's, e.g. data/sweeps/recorded). Cells
+    record what they lack themselves, but workers that reach one folder together each record all
+    of it: recording first spares a cluster that (paper: about 6 CPU-hours for the four
+    60-minute folders and the held-out runs)."""
     grid, workdir = RECORDED[profile_name], Path(workdir)
     for gravity in grid["configs"]:
         for gap in dict.fromkeys(gap for gap, _ in grid["trained"]):
             runs = max(n for g, n in grid["trained"] if g == gap)
-            record(workdir, profile_name, gravity, gap, TRAINING_SEED, runs)
-            record(workdir, profile_name, gravity, gap, HELD_OUT_SEED, grid["held_out"])
+            record(workdir, profile_name, gravity, gap, TRAINING_SEED, runs, workers)
+            record(workdir, profile_name, gravity, gap, HELD_OUT_SEED, grid["held_out"], workers)
 
 
 def _read(files: list[Path], workdir: Path) -> data.Dataset:
