@@ -155,6 +155,26 @@ def test_cells_with_several_rows_ship_and_read_back_from_the_shipped_csv(tmp_pat
     pd.testing.assert_frame_equal(pd.read_csv(shipped), first.rows)  # not replaced by nothing
 
 
+def test_a_sweep_never_drops_shipped_rows_of_cells_it_does_not_know(tmp_path, sweep_dirs, monkeypatch):
+    """Shipped rows under a key that is no cell of today's grid (another grid, study version or
+    key scheme) stay: the sweep warns, computes what it lacks and writes its rows beside, never a
+    shipped CSV without them."""
+    monkeypatch.setitem(sweep.STUDIES, "multi", Study(_per_reference_cells, _per_reference_run))
+    sweep.run_sweep("multi", "paper", client=None, device="cpu", progress=False)
+    shipped = tmp_path / "shipped" / "multi-paper.csv"
+    table = pd.read_csv(shipped)
+    table.loc[table.seed == 1, "key"] = "0123456789abcdef"  # the second cell's rows under a key of another scheme
+    shipped.write_text(table.to_csv(index=False))
+    committed = shipped.read_bytes()
+    for cached in (sweep_dirs / "multi").glob("*.json"):
+        cached.unlink()  # a fresh clone: only the shipped CSV
+    with pytest.warns(UserWarning, match="holds rows of 1 cells that are not cells of this grid"):
+        again = sweep.run_sweep("multi", "paper", client=None, device="cpu", progress=False)
+    assert (again.cached, again.computed) == (1, 1)
+    assert shipped.read_bytes() == committed
+    assert pd.read_csv(again.csv)["score"].tolist() == [0, 0.25, 0.5, 1, 1.25, 1.5]
+
+
 def test_a_sweep_that_must_not_compute_returns_the_rows_present_and_writes_nothing(tmp_path, sweep_dirs, monkeypatch):
     """compute_missing=False (a notebook showing a study of hours): no cell runs, the rows present
     come back in grid order with the number of cells that have none, and no CSV is written (a

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import time
+import warnings
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -139,7 +140,16 @@ def run_sweep(
     if len(set(keys)) != len(keys):
         raise ValueError(f"study {study!r} yields duplicate cells for profile {profile_name!r}")
 
-    rows = _shipped_rows(shipped_csv, keys) if shipped and shipped_csv is not None else {}
+    rows, stale = _shipped_rows(shipped_csv, keys) if shipped and shipped_csv is not None else ({}, set())
+    if stale and compute_missing:
+        warnings.warn(
+            f"{shipped_csv} holds rows of {len(stale)} cells that are not cells of this grid (another grid, "
+            "study version or key): it is left as it is, so none of them is lost; this sweep's rows go to "
+            f"{root / f'{study}-{profile_name}.csv'}. Migrate their keys, or recompute (--recompute replaces "
+            "it once every cell is computed).",
+            stacklevel=2,
+        )
+        shipped_csv = None
     rows.update({key: cached for key in keys if (cached := _cached_rows(workdir / f"{key}.json")) is not None})
     missing = [(key, cell) for key, cell in zip(keys, cells) if key not in rows]
     csv = root / f"{study}-{profile_name}.csv"
@@ -219,15 +229,16 @@ def _cached_rows(path: Path) -> list[dict] | None:
     return rows if isinstance(rows, list) else None
 
 
-def _shipped_rows(csv: Path, keys) -> dict:
-    """{key: rows} of the shipped CSV's cells that are in ``keys`` (rows of an older grid or
-    version are left out), every row with all of the CSV's columns in its order, so that the
-    rows written back keep it; {} without the file."""
+def _shipped_rows(csv: Path, keys) -> tuple[dict, set]:
+    """{key: rows} of the shipped CSV's cells that are in ``keys``, every row with all of the
+    CSV's columns in its order, so that the rows written back keep it; and the keys of its
+    other cells (an older grid or version: never served, and never dropped by a rewrite)."""
     if not csv.exists():
-        return {}
-    table = pd.read_csv(csv)
-    table = table[table["key"].isin(keys)]
-    return {key: group.to_dict("records") for key, group in table.groupby("key", sort=False)}
+        return {}, set()
+    table = pd.read_csv(csv, dtype={"key": str})
+    known = table["key"].isin(keys)
+    rows = {key: group.to_dict("records") for key, group in table[known].groupby("key", sort=False)}
+    return rows, set(table.loc[~known, "key"])
 
 
 def _outcomes(study: str, missing, profile_name: str, device: str, workdir: Path, client: Client | None):
