@@ -65,15 +65,8 @@ def main():
     with tempfile.TemporaryDirectory() as scratch:
         scratch, trained = Path(scratch), {}
         for device in args.devices[1:]:  # warm-up, not timed
-            warm = dataclasses.replace(profile.train_config("mlp"), steps_per_epoch=50, val_samples=1000)
-            training.train(
-                "mlp",
-                dataset,
-                dataclasses.replace(warm, epochs=1),
-                scratch / f"warm-{device}.pt",
-                device=device,
-                progress=False,
-            )
+            warm = dataclasses.replace(profile.train_config("mlp"), epochs=1, steps_per_epoch=50, val_samples=1000)
+            training.train("mlp", dataset, warm, scratch / f"warm-{device}.pt", device=device, progress=False)
         for name in args.models:
             budget = profile.train_config(name)
             timed = {

@@ -118,9 +118,10 @@ def record_runs(
     paths = [run_path(folder, run) for run in range(n_runs)]
     missing = [run for run, path in enumerate(paths) if not path.is_file()]
     rig = _Rig(folder, robot, gravity, gap, float(seconds), int(seed), float(latency), float(dropped))
-    chunks = [
-        [run for run in missing if run - run % CHUNK == first] for first in sorted({r - r % CHUNK for r in missing})
-    ]
+    by_chunk = {}  # first run of a chunk: its missing runs, in order
+    for run in missing:
+        by_chunk.setdefault(run - run % CHUNK, []).append(run)
+    chunks = list(by_chunk.values())
     with tqdm(total=n_runs, initial=n_runs - len(missing), desc="recording", unit="run", disable=not progress) as bar:
         if workers == 1 or len(chunks) < 2:
             for runs in chunks:

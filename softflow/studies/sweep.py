@@ -140,19 +140,19 @@ def run_sweep(
     if len(set(keys)) != len(keys):
         raise ValueError(f"study {study!r} yields duplicate cells for profile {profile_name!r}")
 
+    csv = root / f"{study}-{profile_name}.csv"
     rows, stale = _shipped_rows(shipped_csv, keys) if shipped and shipped_csv is not None else ({}, set())
     if stale and compute_missing:
         warnings.warn(
             f"{shipped_csv} holds rows of {len(stale)} cells that are not cells of this grid (another grid, "
             "study version or key): it is left as it is, so none of them is lost; this sweep's rows go to "
-            f"{root / f'{study}-{profile_name}.csv'}. Migrate their keys, or recompute (--recompute replaces "
+            f"{csv}. Migrate their keys, or recompute (--recompute replaces "
             "it once every cell is computed).",
             stacklevel=2,
         )
         shipped_csv = None
     rows.update({key: cached for key in keys if (cached := _cached_rows(workdir / f"{key}.json")) is not None})
     missing = [(key, cell) for key, cell in zip(keys, cells) if key not in rows]
-    csv = root / f"{study}-{profile_name}.csv"
     if not compute_missing:
         return SweepResult(
             csv, _table(rows, keys), [], cached=len(cells) - len(missing), computed=0, missing=len(missing)
