@@ -336,3 +336,28 @@ def test_the_spread_table_gives_each_training_set_its_ratio_to_the_floor():
     assert list(spread.index) == [("vertical", "friction", 60), ("vertical", "typical", 60)]
     np.testing.assert_allclose(spread["spread / floor"], [1.5, 1.05])
     assert study_tables.recorded_spread(rows.iloc[3:]).empty
+
+
+def test_the_per_step_table_averages_each_model_over_its_seeds_once():
+    """Hand-made rows: an MLP of 60 runs (two seeds, each on two references: counted once per seed),
+    an RF with its draw measures, and the simulator's RF-FWD, which has no held-out runs of its own."""
+    rows = pd.DataFrame(
+        [
+            dict(gravity="vertical", gap="friction", trained_on=on, runs=n, mode=mode, model=model, seed=seed,
+                 reference=reference, u_rmse_test=error, draw_spread=spread)
+            for on, n, mode, model, seed, error, spread in [
+                ("recordings", 60, "planned-commands", "mlp", 0, 0.10, np.nan),
+                ("recordings", 60, "planned-commands", "mlp", 1, 0.20, np.nan),
+                ("recordings", 60, "planned-commands", "rf", 0, 0.30, 0.05),
+                ("simulator", np.nan, "open", "rf-fwd", 0, np.nan, np.nan),
+            ]
+            for reference in ("star", "circle")
+        ]
+    )  # fmt: skip
+    table = study_tables.recorded_per_step(rows)
+    assert list(table.index) == [("vertical", "friction, 60 runs", "mlp"), ("vertical", "friction, 60 runs", "rf")]
+    np.testing.assert_allclose(table.u_rmse_test, [0.15, 0.30])
+    np.testing.assert_allclose(table.u_rmse_test_sd, [np.std([0.10, 0.20], ddof=1), np.nan])
+    np.testing.assert_allclose(table.draw_spread, [np.nan, 0.05])
+    assert list(table.seeds) == [2, 1]
+    assert study_tables.recorded_per_step(rows[rows.trained_on == "simulator"]).empty

@@ -445,6 +445,27 @@ def recorded_spread(rows: pd.DataFrame) -> pd.DataFrame:
     return _spread_table(learned, ["gravity", "gap", "runs"])
 
 
+# Per-step measures of a model of recordings on the held-out runs (motor commands, mm): its
+# error, and a flow's one draw, mean of draws, the draws' spread and its rank correlation with the error.
+RECORDED_STEP = ("u_rmse_test", "u_rmse_draw", "u_rmse_mean_of_draws", "draw_spread", "spread_error_spearman")
+
+
+def recorded_per_step(rows: pd.DataFrame) -> pd.DataFrame:
+    """Per configuration, condition (``recorded_conditions``) and model of recordings: the per-step
+    measures present (``RECORDED_STEP``) as means over seeds (a flow's draw measures; NaN for a
+    regression), the seed spread of the error (standard deviation) and the number of seeds. No
+    ranking: one number per trained model leaves nothing to pair over."""
+    index = ["gravity", "condition", "model"]
+    learned = rows[rows["trained_on"] == "recordings"] if len(rows) else rows
+    values = [value for value in RECORDED_STEP if value in learned]
+    if learned.empty or not values:
+        return pd.DataFrame(index=pd.MultiIndex.from_tuples([], names=index))
+    learned = learned.assign(condition=recorded_conditions(learned))
+    table = per_step_table(learned, index, values)
+    per_model = learned.drop_duplicates(subset=[*index, "seed"]).groupby(index, sort=False)
+    return table.assign(u_rmse_test_sd=per_model["u_rmse_test"].std(), seeds=per_model["seed"].nunique())
+
+
 def recorded_table(rows: pd.DataFrame) -> pd.DataFrame:
     """The recorded study's table: per configuration, condition (``recorded_conditions``) and
     model, "mean [low, high]" tracking RMSE in mm through the camera and of the true tip per
