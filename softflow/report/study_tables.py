@@ -155,6 +155,14 @@ def per_step_table(rows: pd.DataFrame, by, values) -> pd.DataFrame:
     return per_model.groupby(list(by), sort=False)[list(values)].mean()
 
 
+def _seed_means(rows: pd.DataFrame, by: list, values: list, spread_of: list) -> pd.DataFrame:
+    """``per_step_table`` of ``values`` per group of ``by``, with the seed spread (standard
+    deviation, NaN for one seed) of ``spread_of`` as <name>_sd and the number of seeds."""
+    per_model = rows.drop_duplicates(subset=[*by, "seed"]).groupby(by, sort=False)
+    spread = per_model[spread_of].std().add_suffix("_sd")
+    return per_step_table(rows, by, values).join(spread).assign(seeds=per_model["seed"].nunique())
+
+
 def two_segment_variants(rows: pd.DataFrame) -> pd.DataFrame:
     """The two_segment study's model rows as regime-map variants ("two segments, tip", "two
     segments, tip+disk"): the same measures (conditional spread and its floor, z = 0 tracking on
@@ -346,11 +354,7 @@ def two_segment_per_step(rows: pd.DataFrame) -> pd.DataFrame:
     values = [value for value in TWO_SEGMENT_STEP if value in models]
     if models.empty or not values:
         return pd.DataFrame(index=pd.MultiIndex.from_tuples([], names=["observation", "model"]))
-    by = ["observation", "model"]
-    table = per_step_table(models, by, values)
-    per_model = models.drop_duplicates(subset=[*by, "seed"]).groupby(by, sort=False)
-    spread = per_model[["u_rmse_test", "tip_step_mm"]].std().add_suffix("_sd")
-    return _ordered(table.join(spread).assign(seeds=per_model["seed"].nunique()))
+    return _ordered(_seed_means(models, ["observation", "model"], values, ["u_rmse_test", "tip_step_mm"]))
 
 
 def two_segment_spread(rows: pd.DataFrame) -> pd.DataFrame:
@@ -460,10 +464,7 @@ def recorded_per_step(rows: pd.DataFrame) -> pd.DataFrame:
     values = [value for value in RECORDED_STEP if value in learned]
     if learned.empty or not values:
         return pd.DataFrame(index=pd.MultiIndex.from_tuples([], names=index))
-    learned = learned.assign(condition=recorded_conditions(learned))
-    table = per_step_table(learned, index, values)
-    per_model = learned.drop_duplicates(subset=[*index, "seed"]).groupby(index, sort=False)
-    return table.assign(u_rmse_test_sd=per_model["u_rmse_test"].std(), seeds=per_model["seed"].nunique())
+    return _seed_means(learned.assign(condition=recorded_conditions(learned)), index, values, ["u_rmse_test"])
 
 
 def recorded_table(rows: pd.DataFrame) -> pd.DataFrame:
