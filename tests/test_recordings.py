@@ -2,11 +2,14 @@
 back on the commands' grid; every bad file refused by name, row and column; a folder becomes the
 Dataset training uses, split by recording, and the MLP trains on it."""
 
+import gzip
+
 import numpy as np
 import pandas as pd
 import pytest
 
-from softflow import control, recordings, training
+from softflow import SIM_ROBOT, Simulator, control, recordings, training
+from softflow.data.dataset import Dataset
 from softflow.data.smoothing import smooth
 from softflow.profiles import TrainConfig
 
@@ -135,7 +138,12 @@ def test_clock_times_read_like_times_from_zero(tmp_path):
 
 @pytest.mark.parametrize(
     "options, message",
-    [({"dt": -0.01}, "dt must be"), ({"max_gap": 0}, "max_gap must be"), ({"jerk": "high"}, "jerk must be")],
+    [
+        ({"dt": -0.01}, "dt must be"),
+        ({"max_gap": 0}, "max_gap must be"),
+        ({"jerk": "high"}, "jerk must be"),
+        ({"delay": -0.01}, "delay must be None .* or an input-to-motion delay >= 0 in s"),
+    ],
 )
 def test_options_are_checked(tmp_path, options, message):
     with pytest.raises(ValueError, match=message):
@@ -171,6 +179,16 @@ BAD = {  # a change of the good table, options of read, the message
     "all-NaN tip": (spoil("y_m", slice(None), np.nan), {}, r"bad\.csv: column 'y_m': no tip position at all"),
     "one frame": (spoil("x_m", slice(1, None), np.nan), {}, r"bad\.csv: column 'x_m': fewer than two frames"),
     "no inputs": (lambda table: table.drop(columns=["u1", "u2"]), {}, r"bad\.csv: no inputs columns found"),
+    "time in ms": (
+        lambda table: table.assign(time_s=1000 * table.time_s),
+        {},
+        r"bad\.csv: column 'time_s': the median step between times is 10; time_s looks like milliseconds",
+    ),
+    "tip in mm": (
+        lambda table: table.assign(y_m=1000 * table.y_m),
+        {},
+        r"bad\.csv: column 'y_m': positions span [\d.]+ \(more than 10 m\); it looks like millimetres.*tip=\[\.\.\.\]",
+    ),
 }
 
 
@@ -228,12 +246,13 @@ def point_mass_run(path, rng, inputs: int, tip: int, seconds: float):
 @pytest.fixture(scope="module")
 def folder(tmp_path_factory):
     """Ten recordings of 3 to 4 s of a 3-input, 2-D-tip point mass, their true states, each read,
-    and the Dataset of the folder with its cache folder."""
+    and the Dataset of the folder with its cache folder. The point mass has no delay (and its
+    sines leave one unidentifiable: test_a_delay_the_runs_disagree_on_is_warned_about)."""
     path, rng = tmp_path_factory.mktemp("runs"), np.random.default_rng(6)
     truths = [point_mass_run(path / f"run{i:02d}.csv", rng, 3, 2, rng.uniform(3, 4)) for i in range(10)]
-    runs = [recordings.read(file) for file in sorted(path.glob("*.csv"))]
+    runs = [recordings.read(file, delay=0.0) for file in sorted(path.glob("*.csv"))]
     cache = tmp_path_factory.mktemp("cache")
-    return path, truths, runs, recordings.load_dataset(path, data_dir=cache), cache
+    return path, truths, runs, recordings.load_dataset(path, delay=0.0, data_dir=cache), cache
 
 
 def test_recorded_states_match_the_robots_true_states(folder):
@@ -303,7 +322,7 @@ def test_a_3d_tip_and_a_chosen_episode_length(tmp_path):
     rng = np.random.default_rng(7)
     for i in range(3):
         point_mass_run(tmp_path / f"run{i}.csv", rng, 2, 3, 2.5)
-    data = recordings.load_dataset(tmp_path, episode_seconds=1.0, fractions=(1 / 3, 1 / 3), data_dir=None)
+    data = recordings.load_dataset(tmp_path, delay=0.0, episode_seconds=1.0, fractions=(1 / 3, 1 / 3), data_dir=None)
     assert (data.dims.inputs, data.dims.position) == (2, 3) and data.u.shape[1] == 100
     assert (len(data.train), len(data.val), len(data.test)) == (3, 3, 3)  # 3 episodes of each recording
 
@@ -316,7 +335,7 @@ def test_a_bad_file_names_itself_and_leaves_the_cache_alone(folder, tmp_path):
     with pytest.raises(ValueError, match=r"bad\.csv: no time column"):
         recordings.load_dataset(files, data_dir=cache)
     assert sorted(cache.iterdir()) == before
-    again = recordings.load_dataset(path, data_dir=cache)
+    again = recordings.load_dataset(path, delay=0.0, data_dir=cache)
     assert again.key == data.key
     np.testing.assert_array_equal(again.states, data.states)
 
@@ -332,3 +351,177 @@ def test_recordings_must_agree_on_their_columns_and_be_enough_to_split(tmp_path)
     (tmp_path / "empty").mkdir()
     with pytest.raises(ValueError, match=r"empty: no recording files"):
         recordings.load_dataset(tmp_path / "empty", data_dir=None)
+
+
+# ---------------------------------------------------------------------------- compressed files
+def test_a_gzip_compressed_csv_reads_as_the_csv_and_a_folder_lists_it(tmp_path):
+    path = write_sines(tmp_path / "run.csv", np.random.default_rng(9))
+    folder = tmp_path / "packed"
+    folder.mkdir()
+    packed = folder / "run.csv.gz"
+    packed.write_bytes(gzip.compress(path.read_bytes(), mtime=0))
+    plain, compressed = recordings.read(path), recordings.read(packed)
+    np.testing.assert_array_equal(compressed.states, plain.states)
+    np.testing.assert_array_equal(compressed.inputs, plain.inputs)
+    assert recordings.recording_files(folder) == [packed]
+    (folder / "broken.csv.gz").write_bytes(b"not gzip at all")
+    with pytest.raises(ValueError, match=r"broken\.csv\.gz: not a readable csv\.gz table"):
+        recordings.read(folder / "broken.csv.gz")
+
+
+# ---------------------------------------------------------------------------- lost frames
+def test_tip_columns_group_into_points_by_name():
+    names = ["x1_m", "y1_m", "z1_m", "x2_m", "y2_m", "x_m", "y_m", "depth_m"]
+    assert recordings.tip_points(names) == [[0, 1, 2], [3, 4], [5, 6], [7]]
+
+
+def two_disks(t, fast_hz: float = 2.0):
+    """Disk 1 (x1_m, y1_m, z1_m) swinging slowly (20 mm, 1 Hz), disk 2 (x2_m, y2_m, z2_m) faster
+    (20 mm at ``fast_hz``: 5 Hz makes 20 m/s^2 at its turning points)."""
+    slow, fast = 0.02 * np.sin(2 * np.pi * t), 0.02 * np.sin(2 * np.pi * fast_hz * t)
+    return np.stack([slow, 0.3 + 0.5 * slow, 0.1 - slow, fast, 0.2 + 0.3 * fast, 0.1 + fast], -1)  # (R, 6)
+
+
+def test_held_frames_and_one_frame_jumps_are_lost_per_point():
+    t = np.arange(100) * 0.01
+    names = ["x1_m", "y1_m", "z1_m", "x2_m", "y2_m", "z2_m"]
+    tip = two_disks(t) + 1e-6 * np.random.default_rng(11).standard_normal((100, 6))  # noise-free samples may repeat
+    tip[30:33, :3] = tip[29, :3]  # disk 1 held for three frames
+    tip[60, 0] = tip[59, 0]  # one coordinate repeating is not a held frame
+    tip[45, 3:] -= 0.005  # disk 2 jumps 5 mm per axis for one frame against its motion (0.2 m/s)
+    tip[80:, 3:] += 0.01  # and steps 10 mm for good (a lost stretch of time, not a lost frame)
+    lost, frozen, jumps = recordings.lost_frames(t, tip, names)
+    expected = np.zeros(tip.shape, bool)
+    expected[30:33, :3] = expected[45, 3:] = True
+    np.testing.assert_array_equal(lost, expected)
+    np.testing.assert_array_equal(frozen, [3, 3, 3, 0, 0, 0])
+    np.testing.assert_array_equal(jumps, [0, 0, 0, 1, 1, 1])
+
+
+def test_a_jump_scales_with_the_frame_interval_and_the_cameras_noise():
+    """At 30 fps a turning point of 20 m/s^2 departs 11 mm from its neighbours' chord and is kept, and
+    1 mm of camera noise never makes a jump; a 60 mm excursion of a slower motion still does."""
+    rng = np.random.default_rng(10)
+    t = np.sort(np.arange(0, 2, 1 / 30) + rng.uniform(-0.004, 0.004, 60))
+    noise = 1e-3 * rng.standard_normal((len(t), 3))
+    assert not recordings.lost_frames(t, two_disks(t, fast_hz=5.0)[:, 3:] + noise, TIP_NAMES)[0].any()
+    tip = two_disks(t)[:, 3:] + noise
+    tip[21] += 0.06
+    np.testing.assert_array_equal(np.flatnonzero(recordings.lost_frames(t, tip, TIP_NAMES)[0].any(1)), [21])
+
+
+TIP_NAMES = ["x_m", "y_m", "z_m"]
+
+
+def held_run(path, first: int, held: int):
+    """Two seconds at 100 Hz (commands and frames on the same rows) of a slow swing whose tip
+    the tracker holds from row ``first`` for ``held`` rows."""
+    t = np.arange(201) * 0.01
+    tip = two_disks(t)[:, :3] + 1e-6 * np.random.default_rng(12).standard_normal((len(t), 3))
+    tip[first : first + held] = tip[first - 1]
+    table = pd.DataFrame({"time_s": t, "u1": np.sin(t), "u2": np.cos(t), **dict(zip(TIP_NAMES, tip.T))})
+    table.to_csv(path, index=False)
+    return t, two_disks(t)[:, :3]
+
+
+def test_held_frames_are_bridged_up_to_max_gap_and_refused_beyond_it(tmp_path):
+    t, truth = held_run(tmp_path / "short.csv", 100, 15)  # 0.16 s between the frames around them
+    run = recordings.read(tmp_path / "short.csv", delay=0.0)
+    assert run.frozen.tolist() == [15, 15, 15] and run.jumps.tolist() == [0, 0, 0]
+    true = np.stack([np.interp(run.times, t, truth[:, i]) for i in range(3)], -1)
+    assert np.abs(run.states[:, :3] - true).max() < 1e-3  # the held value is 2 mm off at the end of the hold
+    held_run(tmp_path / "long.csv", 100, 25)
+    with pytest.raises(ValueError, match=r"long\.csv: rows 99-125, column 'x_m': 0\.260 s between frames.*25 of the "):
+        recordings.read(tmp_path / "long.csv")
+    kept = recordings.read(tmp_path / "long.csv", dropouts=False, delay=0.0)
+    assert kept.frozen.tolist() == [0, 0, 0] and len(kept.inputs) == 200
+
+
+def gapped_run(path, gap=(1.0, 1.5), seconds: float = 4.0):
+    """A 100 Hz run with no frame inside ``gap`` (s), where every command is 99: nothing there may
+    reach the Dataset."""
+    t = np.round(np.arange(0, seconds + 1e-9, 0.01), 2)
+    tip = two_disks(t)[:, :3] + 1e-6 * np.random.default_rng(13).standard_normal((len(t), 3))
+    inside = (t > gap[0]) & (t < gap[1])
+    tip[inside] = np.nan
+    u = np.stack([np.sin(t), np.cos(t)], -1)
+    u[inside] = 99.0
+    pd.DataFrame({"time_s": t, "u1": u[:, 0], "u2": u[:, 1], **dict(zip(TIP_NAMES, tip.T))}).to_csv(path, index=False)
+
+
+def test_a_long_gap_is_refused_or_the_file_cut_there(tmp_path):
+    gapped_run(tmp_path / "run0.csv")
+    for name in ("run1.csv", "run2.csv"):
+        gapped_run(tmp_path / name, gap=(9.0, 9.0))
+    options = dict(delay=0.0, fractions=(1 / 3, 1 / 3), data_dir=None)
+    with pytest.raises(ValueError, match=r"run0\.csv: rows 100-150, column 'x_m': 0\.500 s .*split_at_gaps=True"):
+        recordings.load_dataset(tmp_path, **options)
+    data = recordings.load_dataset(tmp_path, split_at_gaps=True, **options)
+    assert data.u.shape[1] == 250  # the longest stretch of run0 (1.5 to 4 s) whole; its first second is left out
+    assert len(data.u) == 1 + 2 + 2 and (data.u != 99.0).all()  # run1 and run2 each cut into two, overlapping
+    shorter = recordings.load_dataset(tmp_path, split_at_gaps=True, episode_seconds=1.0, **options)
+    assert shorter.u.shape[1] == 100 and (shorter.u != 99.0).all()
+    assert len(shorter.u) == (1 + 3) + 2 * 4  # run0: 1 s before the gap (100 steps), 2.5 s after it
+
+
+# ---------------------------------------------------------------------------- the delay
+def delayed_rod_run(path, delay_steps: int, seed: int, seconds: float = 10.0):
+    """The simulated rod under a random staircase (levels of +-2 N held 50-200 ms), filmed at 100 Hz
+    with 0.05 mm noise, its inputs logged ``delay_steps`` periods before they act."""
+    rng = np.random.default_rng(seed)
+    n = int(round(seconds / 0.01))
+    u = np.zeros((n + delay_steps, 2))
+    start = 0
+    while start < len(u):
+        hold = int(rng.integers(5, 20))
+        u[start : start + hold] = rng.uniform(-2, 2, 2)
+        start += hold
+    x = Simulator(SIM_ROBOT, gravity="vertical").rollout(u[None, :n], progress=False)[0]  # (n+1, 6)
+    t = np.arange(n + 1) * 0.01
+    logged = np.concatenate([u[delay_steps : delay_steps + n], np.full((1, 2), np.nan)])  # sent early
+    tip = x[:, :3] + 5e-5 * rng.standard_normal((n + 1, 3))
+    table = pd.DataFrame({"time_s": t, "u1": logged[:, 0], "u2": logged[:, 1], **dict(zip(TIP_NAMES, tip.T))})
+    table.to_csv(path, index=False)
+    return path
+
+
+@pytest.mark.parametrize("delay_steps", [0, 4, 9])
+def test_a_known_delay_is_recovered_within_one_period(tmp_path, delay_steps):
+    run = recordings.read(delayed_rod_run(tmp_path / "run.csv", delay_steps, seed=delay_steps))
+    assert abs(run.delay_steps - delay_steps) <= 1 and run.delay == pytest.approx(run.delay_steps * run.dt)
+    inputs, states = run.pairs()
+    assert len(inputs) == len(run.inputs) - run.delay_steps and len(states) == len(inputs) + 1
+    np.testing.assert_array_equal(states, run.states[run.delay_steps :])
+    fixed = recordings.read(tmp_path / "run.csv", delay=0.05)
+    assert (fixed.delay, fixed.delay_steps) == (0.05, 5)
+
+
+def test_the_dataset_pairs_each_step_with_the_input_sent_its_delay_before(tmp_path):
+    for seed in range(3):
+        delayed_rod_run(tmp_path / f"run{seed}.csv", 6, seed=10 + seed, seconds=6.0)
+    data = recordings.load_dataset(tmp_path, fractions=(1 / 3, 1 / 3), data_dir=None)
+    assert abs(data.delay_steps - 6) <= 1 and len(data.delays) == 3
+    assert data.delay_steps == round(np.median(data.delays) / data.dt)
+    fixed = recordings.load_dataset(tmp_path, delay=0.03, fractions=(1 / 3, 1 / 3), data_dir=None)
+    runs = [recordings.read(path, delay=0.03) for path in sorted(tmp_path.glob("*.csv"))]
+    assert fixed.delay_steps == 3 and fixed.delays == () and fixed.u.shape[1] == min(len(r.inputs) for r in runs) - 3
+    cuts = recordings.episodes([len(run.pairs()[0]) for run in runs], fixed.u.shape[1])
+    n = fixed.u.shape[1]
+    np.testing.assert_array_equal(fixed.u, [runs[i].inputs[s : s + n] for i, s in cuts])  # the first inputs
+    np.testing.assert_array_equal(fixed.states, [runs[i].states[3 + s : 3 + s + n + 1] for i, s in cuts])
+
+
+def test_a_delay_the_runs_disagree_on_is_warned_about(folder):
+    """The point mass's sines and its 2-D tip leave the delay unidentified (no delay; estimates of 0
+    and of 0.2-0.4 s): the median is no answer, and the warning says so."""
+    with pytest.warns(recordings.DelayWarning, match="delay estimates disagree .* pass delay="):
+        data = recordings.load_dataset(folder[0], data_dir=None)
+    assert len(data.delays) == 10
+
+
+def test_a_dataset_delay_is_a_whole_number_of_periods(folder):
+    data = folder[3]
+    assert data.delay_steps == 0 and data.delays == ()
+    for bad in (-1, 1.5, True):
+        with pytest.raises(ValueError, match="delay_steps must be a whole number of periods >= 0"):
+            Dataset(data.u, data.states, data.train, data.val, data.test, robot=None, gravity=None, delay_steps=bad)

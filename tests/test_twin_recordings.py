@@ -44,13 +44,14 @@ def test_runs_are_files_of_the_recordings_format(recorded):
 
 def test_load_dataset_reads_them_on_the_command_period(recorded):
     folder = recorded[0]
-    data = recordings.load_dataset(folder, fractions=(1 / 3, 1 / 3), data_dir=None)
+    data = recordings.load_dataset(folder, delay=0.0, fractions=(1 / 3, 1 / 3), data_dir=None)
     assert data.dt == pytest.approx(DT)
     assert data.u.shape == (3, 300, 2) and data.states.shape == (3, 301, 6)  # u by default, a 3-D tip
     motors = recordings.load_dataset(
         folder, inputs=recorder.motor_columns(HW_ROBOT), fractions=(1 / 3, 1 / 3), data_dir=None
     )
-    assert motors.u.shape == (3, 300, 3)
+    d = motors.delay_steps  # estimated: the plant's motor lag and the camera, a few periods
+    assert motors.u.shape == (3, 300 - d, 3) and d == round(np.median(motors.delays) / DT) and 0 <= d <= 10
     assert sorted(np.concatenate([data.train, data.val, data.test])) == [0, 1, 2]
 
 

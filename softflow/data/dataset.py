@@ -39,7 +39,9 @@ class Dataset:
     """Whole episodes: u (E, T, m), states (E, T+1, d) (tip positions, then their velocities), an
     episode split, the sample period ``dt`` (s), and the rod and gravity that made them
     (RF-Physical's prior is that rod's statics; None for data no simulator made). Models take
-    their sizes from it (``dims``): m = 2 and d = 6 for the paper's rods."""
+    their sizes from it (``dims``): m = 2 and d = 6 for the paper's rods. Recorded data pair each
+    (x_t, x_{t+1}) with the input sent ``delay_steps`` periods earlier (the rig's input-to-motion
+    delay; 0 for simulated data), and keep the per-recording estimates it came from (``delays``, s)."""
 
     u: np.ndarray
     states: np.ndarray
@@ -50,12 +52,17 @@ class Dataset:
     robot: Robot | None = SIM_ROBOT
     gravity: str | None = "vertical"
     dt: float = DT
+    delay_steps: int = 0  # periods between an input and the step it is paired with
+    delays: tuple[float, ...] = ()  # s: the estimated delay of each recording (NaN: too short), if estimated
 
     def __post_init__(self):
         if self.u.ndim != 3 or self.states.ndim != 3 or self.states.shape[:2] != (len(self.u), self.u.shape[1] + 1):
             raise ValueError(f"need u (E, T, m) and states (E, T+1, d); got {self.u.shape} and {self.states.shape}")
         if not (np.isfinite(self.dt) and self.dt > 0):
             raise ValueError(f"dt must be a positive sample period in s; got {self.dt!r}")
+        whole = isinstance(self.delay_steps, (int, np.integer)) and not isinstance(self.delay_steps, bool)
+        if not (whole and self.delay_steps >= 0):
+            raise ValueError(f"delay_steps must be a whole number of periods >= 0; got {self.delay_steps!r}")
 
     @property
     def dims(self) -> Dims:

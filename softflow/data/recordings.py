@@ -12,7 +12,11 @@ starts at the first command once every tip column has a frame and ends where the
 commands end: the tip position and velocity per axis, by the smoother of ``smoothing``, and the
 input of each step, the mean over it of the commands, each held until the next (zero-order
 hold). A run of lost frames up to ``max_gap`` s is bridged by the smoother; a longer one is
-refused, naming its rows, never filled: cut the file there.
+refused, naming its rows, never filled: cut the file there, or let ``load_dataset`` cut it
+(``split_at_gaps``). Frames a tracker held (a point exactly repeating its last frame) or that
+jumped for one frame are lost frames too (``lost_frames``). Each recording carries its
+input-to-motion delay (``estimate_delay``); the Dataset pairs each step with the input sent that
+many periods before it.
 """
 
 from __future__ import annotations
@@ -20,7 +24,9 @@ from __future__ import annotations
 import hashlib
 import io
 import math
-from dataclasses import dataclass
+import re
+import warnings
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -30,11 +36,29 @@ from softflow.data.dataset import Dataset, split_episodes
 from softflow.data.smoothing import check_levels, smooth
 from softflow.store import DATA_DIR, cache_file, cached_arrays, content_key
 
-RECORDINGS_VERSION = 1  # bump when the resampling, the smoother, the episodes or the split change
+# bump when what the twin's recordings load as changes (the recorded study's rows key on it)
+RECORDINGS_VERSION = 1
+# bump when any recording's arrays change: it keys the cached datasets only. 2: held and jumped
+# frames are lost frames, and the pairs carry the input-to-motion delay (the twin's runs have
+# neither: their arrays at delay=0 are those of revision 1)
+LOADER_REVISION = 2
 TIME = "time_s"
 TIP = ("x_m", "y_m", "z_m")
-SUFFIXES = (".csv", ".parquet")
+SUFFIXES = (".csv", ".csv.gz", ".parquet")
 MAX_GAP = 0.2  # s: the longest run of lost frames the smoother bridges (6 frames at 30 fps)
+# A frame departing from the chord between its neighbouring frames by more than a constant
+# acceleration of JUMP_ACCELERATION would (a h1 h2 / 2: 2.5 mm at 100 Hz, 28 mm at 30 fps) while
+# the neighbours lie nearer each other than that departure is a jump (a missed frame). The ASL
+# trunk's disks reach 6-12 m/s^2 (99.9th percentile over 50 ms; 13-22 at most) and its frames
+# have 0.003-0.008 mm of noise; the twin's camera noise alone makes at most 13 m/s^2 at 30 fps.
+JUMP_ACCELERATION = 50.0  # m/s^2
+JUMP_NOISE = 10.0  # and by more than this many times the point's median departure (noisy cameras)
+MAX_DELAY = 0.5  # s: the longest input-to-motion delay estimated (at most a quarter of the run)
+DELAY_FOLDS = 5  # contiguous blocks of the run, each held out once when scoring a delay
+DELAY_SPREAD = 2  # periods: estimates whose quartiles lie further apart are warned about
+DELAY_TOLERANCE = 0.05  # a local best within 5 % of the best unexplained variance is as good
+SLOWEST_STEP = 1.0  # s: a median time step this long or longer is milliseconds written as seconds
+WIDEST_SPAN = 10.0  # m: a tip column spanning more is millimetres written as metres
 
 
 @dataclass(frozen=True)
@@ -53,6 +77,10 @@ class Recording:
     tip_columns: tuple[str, ...]
     noise: np.ndarray
     jerk: np.ndarray
+    frozen: np.ndarray  # (k,) frames of each tip column's point that repeated the one before (lost)
+    jumps: np.ndarray  # (k,) frames of each tip column's point that jumped for one frame (lost)
+    delay: float = 0.0  # s: input-to-motion delay, estimated or given (NaN: too short to estimate)
+    delay_steps: int = 0  # the delay in whole periods: what pairs() shifts by (0 where NaN)
 
     def __post_init__(self):
         T, m, k = len(self.inputs), len(self.input_columns), len(self.tip_columns)
@@ -62,11 +90,24 @@ class Recording:
                 f"{self.times.shape}, {self.inputs.shape} and {self.states.shape}"
             )
 
+    def pairs(self, steps: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Inputs (T-d, m) and states (T-d+1, 2k) with step t of the states (x_t to x_{t+1}) paired
+        with the input sent d periods before it (d: ``steps``, default ``delay_steps``): the
+        first d states and the last d inputs are dropped."""
+        d = self.delay_steps if steps is None else steps
+        if not (isinstance(d, (int, np.integer)) and 0 <= d < len(self.inputs)):
+            raise ValueError(
+                f"{self.source}: a delay of {d!r} periods leaves no pair; expected 0 to {len(self.inputs) - 1} "
+                f"(the run has {len(self.inputs)} steps)"
+            )
+        return self.inputs[: len(self.inputs) - d], self.states[d:]
+
 
 @dataclass(frozen=True)
 class _Table:
     """The checked columns of one file: times (R,), inputs (R, m) with NaN rows where no command
-    was given, tip (R, k) with NaN where no frame was taken, and the commands' period (s)."""
+    was given, tip (R, k) with NaN where no frame was taken or it was lost (``lost``, (R, k): held
+    or jumped frames, counted per column in ``frozen`` and ``jumps``), and the commands' period (s)."""
 
     source: str
     times: np.ndarray
@@ -75,6 +116,20 @@ class _Table:
     input_columns: tuple[str, ...]
     tip_columns: tuple[str, ...]
     command_period: float
+    lost: np.ndarray
+    frozen: np.ndarray
+    jumps: np.ndarray
+
+    def rows(self, keep: np.ndarray, source: str) -> _Table:
+        """The table of the rows ``keep`` (R,) bool, named ``source``."""
+        return replace(
+            self,
+            source=source,
+            times=self.times[keep],
+            inputs=self.inputs[keep],
+            tip=self.tip[keep],
+            lost=self.lost[keep],
+        )
 
     @property
     def commands(self) -> np.ndarray:
@@ -83,21 +138,27 @@ class _Table:
 
 
 # ---------------------------------------------------------------------------- one file
+def _suffix(path) -> str:
+    """The recording's kind by name: ".csv", ".csv.gz" (gzip-compressed CSV), ".parquet", or another."""
+    name = Path(path).name.lower()
+    return ".csv.gz" if name.endswith(".csv.gz") else Path(name).suffix
+
+
 def _frame(source: str, content: bytes) -> pd.DataFrame:
     """The file's table, read by pandas (no pickles)."""
-    suffix = Path(source).suffix.lower()
+    suffix = _suffix(source)
     if suffix not in SUFFIXES:
-        raise ValueError(f"{source}: a recording is a {' or '.join(SUFFIXES)} file; got {suffix or 'no suffix'!r}")
+        raise ValueError(f"{source}: a recording is a {', '.join(SUFFIXES)} file; got {suffix or 'no suffix'!r}")
     try:
         if suffix == ".parquet":
             return pd.read_parquet(io.BytesIO(content))
-        return pd.read_csv(io.BytesIO(content))
+        return pd.read_csv(io.BytesIO(content), compression="gzip" if suffix == ".csv.gz" else None)
     except ImportError as error:
         raise ValueError(
             f"{source}: reading Parquet needs pyarrow or fastparquet, which this environment lacks; "
             f"write the recording as CSV instead ({error})"
         ) from error
-    except (ValueError, OSError) as error:  # pandas' parser errors and undecodable bytes among them
+    except (ValueError, OSError, EOFError) as error:  # parser errors, undecodable bytes, broken gzip among them
         raise ValueError(f"{source}: not a readable {suffix[1:]} table ({error})") from error
 
 
@@ -128,9 +189,10 @@ def _column_names(given, default, what: str, source: str, columns) -> tuple[str,
     return tuple(given)
 
 
-def _table(source: str, content: bytes, inputs=None, tip=None) -> _Table:
-    """The file's time, input and tip columns, checked; every error names the file, and the row
-    and the column where there is one (rows count from 0 below the header, as pandas does)."""
+def _table(source: str, content: bytes, inputs=None, tip=None, dropouts: bool = True) -> _Table:
+    """The file's time, input and tip columns, checked, with held and jumped frames lost (unless
+    not ``dropouts``); every error names the file, and the row and the column where there is one
+    (rows count from 0 below the header, as pandas does)."""
     frame = _frame(source, content)
     columns = [str(name) for name in frame.columns]
     frame.columns = columns
@@ -156,7 +218,11 @@ def _table(source: str, content: bytes, inputs=None, tip=None) -> _Table:
         raise ValueError(
             f"{source}: row {row}, column {TIME!r}: time runs backwards ({times[row]} s after {times[row - 1]} s)"
         )
+    _check_time_unit(times, source)
     p = np.stack([_numbers(frame, name, source) for name in tip_columns], -1)  # (R, k)
+    _check_tip_unit(p, tip_columns, source)
+    lost, frozen, jumps = lost_frames(times, p, tip_columns) if dropouts else (np.zeros(p.shape, bool), 0, 0)
+    p = np.where(lost, np.nan, p)
     for i, name in enumerate(tip_columns):
         frames = np.flatnonzero(np.isfinite(p[:, i]))
         if len(frames) == 0:
@@ -182,7 +248,90 @@ def _table(source: str, content: bytes, inputs=None, tip=None) -> _Table:
         raise ValueError(f"{source}: column {TIME!r}: the commands' median interval is 0 s (most share a time)")
     span = commands[-1] - commands[0]
     period = span / round(span / median)  # the median (robust to jitter and lost commands), refined over the span
-    return _Table(source, times, u, p, input_columns, tip_columns, period)
+    k = len(tip_columns)
+    return _Table(
+        source,
+        times,
+        u,
+        p,
+        input_columns,
+        tip_columns,
+        period,
+        lost,
+        np.zeros(k, int) + frozen,
+        np.zeros(k, int) + jumps,
+    )
+
+
+def _check_time_unit(times: np.ndarray, source: str) -> None:
+    """Refuse times whose steps are implausible in seconds (a log in ms or us)."""
+    steps = np.diff(np.unique(times))
+    if len(steps) and np.median(steps) >= SLOWEST_STEP:
+        unit = "microseconds" if np.median(steps) >= 1000 * SLOWEST_STEP else "milliseconds"
+        raise ValueError(
+            f"{source}: column {TIME!r}: the median step between times is {np.median(steps):g}; "
+            f"{TIME} looks like {unit} (expected seconds: a rig logging once a second or slower is unlikely)"
+        )
+
+
+def _check_tip_unit(tip: np.ndarray, tip_columns, source: str) -> None:
+    """Refuse a tip column in metres (``_m``) that spans more than WIDEST_SPAN (a log in mm)."""
+    for i, name in enumerate(tip_columns):
+        measured = tip[np.isfinite(tip[:, i]), i]
+        if name.endswith("_m") and len(measured) and np.ptp(measured) > WIDEST_SPAN:
+            raise ValueError(
+                f"{source}: column {name!r}: positions span {np.ptp(measured):g} (more than {WIDEST_SPAN:g} m); "
+                "it looks like millimetres: write metres, or name the tip columns meant with tip=[...]"
+            )
+
+
+# ---------------------------------------------------------------------------- lost frames
+def tip_points(tip_columns) -> list[list[int]]:
+    """The tip columns grouped into measured points by name: x1_m, y1_m, z1_m are one point (the
+    first disk), x_m, y_m, z_m another; a column named otherwise is a point of its own. Indices
+    into ``tip_columns``, points in order of their first column."""
+    points = {}
+    for i, name in enumerate(tip_columns):
+        axis = re.fullmatch(r"[xyz](.*)_m", name)
+        points.setdefault(("point", axis.group(1)) if axis else ("column", name), []).append(i)
+    return list(points.values())
+
+
+def lost_frames(times, tip, tip_columns) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Frames a tracker lost without saying so, per point (``tip_points``): (lost (R, k) bool,
+    frozen (k,), jumps (k,)), the counts per tip column (its point's).
+
+    Frozen: a point whose coordinates all exactly repeat its previous frame's (motion capture
+    holding its last value; real noise never repeats all of them). Jump: among the frames left,
+    one departing from the chord between its neighbouring frames by more than both a constant
+    JUMP_ACCELERATION would (a h1 h2 / 2 for steps h1, h2) and JUMP_NOISE times the point's median
+    departure, while the neighbours lie nearer each other than that departure (out and back)."""
+    times, tip = np.asarray(times, float), np.asarray(tip, float)
+    lost = np.zeros(tip.shape, bool)  # (R, k)
+    frozen, jumps = np.zeros(tip.shape[1], int), np.zeros(tip.shape[1], int)
+    for columns in tip_points(tip_columns):
+        point = tip[:, columns]  # (R, c)
+        rows = np.flatnonzero(np.isfinite(point).all(1))  # the point's frames
+        held = np.concatenate([np.zeros(min(len(rows), 1), bool), (np.diff(point[rows], axis=0) == 0).all(1)])
+        kept = rows[~held]
+        jumped = kept[1:-1][_jumped(times[kept], point[kept])]
+        lost[np.ix_(rows[held], columns)] = True
+        lost[np.ix_(jumped, columns)] = True
+        frozen[columns], jumps[columns] = held.sum(), len(jumped)
+    return lost, frozen, jumps
+
+
+def _jumped(t: np.ndarray, point: np.ndarray) -> np.ndarray:
+    """Which inner frames of a point's frames (F, c) at times t (F,) jumped: (F-2,) bool."""
+    if len(t) < 3:
+        return np.zeros(max(len(t) - 2, 0), bool)
+    before, after = t[1:-1] - t[:-2], t[2:] - t[1:-1]
+    share = np.divide(before, before + after, out=np.full(len(before), 0.5), where=before + after > 0)
+    chord = point[:-2] + share[:, None] * (point[2:] - point[:-2])  # (F-2, c)
+    departure = np.linalg.norm(point[1:-1] - chord, axis=1)
+    apart = np.linalg.norm(point[2:] - point[:-2], axis=1)
+    threshold = np.maximum(JUMP_ACCELERATION * before * after / 2, JUMP_NOISE * np.median(departure))
+    return (departure > threshold) & (apart < departure)
 
 
 def _held_means(table: _Table, grid: np.ndarray) -> np.ndarray:
@@ -196,31 +345,56 @@ def _held_means(table: _Table, grid: np.ndarray) -> np.ndarray:
     return np.diff(at_grid, axis=0) / np.diff(grid)[:, None]
 
 
-def _resample(table: _Table, dt: float, max_gap: float, noise, jerk) -> Recording:
-    """The table on its grid of period dt: held commands averaged, tip smoothed, long gaps refused."""
-    source, times, tip = table.source, table.times, table.tip
-    commands = times[table.commands]
-    frames = [np.flatnonzero(np.isfinite(column)) for column in tip.T]  # rows with a frame, per column
+def _grid(table: _Table, dt: float) -> np.ndarray | None:
+    """The regular grid (T+1,) of period dt from the first command once every tip column has a
+    frame to where the frames or the commands end; None where that is less than one step."""
+    times, commands = table.times, table.times[table.commands]
+    frames = [np.flatnonzero(np.isfinite(column)) for column in table.tip.T]  # rows with a frame, per column
+    if len(commands) == 0 or any(len(rows) == 0 for rows in frames):
+        return None
     start = max(times[rows[0]] for rows in frames)
     end = min(min(times[rows[-1]] for rows in frames), commands[-1] + table.command_period)
     first = np.searchsorted(commands, start)
     n_steps = math.floor((end - commands[first]) / dt + 1e-9) if first < len(commands) else 0
-    if n_steps < 1:
+    return commands[first] + dt * np.arange(n_steps + 1) if n_steps >= 1 else None
+
+
+def _long_gaps(table: _Table, max_gap: float, within=(-np.inf, np.inf)) -> list[tuple[int, int, int]]:
+    """(column, row before, row after) of every run of lost frames longer than max_gap s that
+    reaches into the interval ``within``, in column order."""
+    gaps = []
+    for i, column in enumerate(table.tip.T):
+        rows = np.flatnonzero(np.isfinite(column))
+        t = table.times[rows]
+        longer = np.diff(t) > max_gap * (1 + 1e-9)  # a gap of max_gap itself is bridged, whatever the rounding
+        long = np.flatnonzero(longer & (t[1:] > within[0]) & (t[:-1] < within[1]))
+        gaps += [(i, rows[j], rows[j + 1]) for j in long]
+    return gaps
+
+
+def _resample(table: _Table, dt: float, max_gap: float, noise, jerk) -> Recording:
+    """The table on its grid of period dt: held commands averaged, tip smoothed, long gaps refused."""
+    source, times, tip = table.source, table.times, table.tip
+    grid = _grid(table, dt)
+    if grid is None:
         raise ValueError(
             f"{source}: the commands and the frames of every tip column overlap for less than one step of {dt} s"
         )
-    grid = commands[first] + dt * np.arange(n_steps + 1)  # (T+1,)
-    for rows, name in zip(frames, table.tip_columns):
-        t = times[rows]
-        long = np.flatnonzero((np.diff(t) > max_gap) & (t[1:] > grid[0]) & (t[:-1] < grid[-1]))
-        if len(long):
-            a, b = rows[long[0]], rows[long[0] + 1]
-            raise ValueError(
-                f"{source}: rows {a}-{b}, column {name!r}: {times[b] - times[a]:.3f} s between frames "
-                f"({times[a]} to {times[b]} s), longer than max_gap = {max_gap} s; cut the file there"
-            )
+    for i, a, b in _long_gaps(table, max_gap, (grid[0], grid[-1]))[:1]:
+        held = int(table.lost[a + 1 : b, i].sum())
+        why = (
+            f"; {held} of the frames there repeat the one before or jump, and count as lost (dropouts=False keeps them)"
+            if held
+            else ""
+        )
+        raise ValueError(
+            f"{source}: rows {a}-{b}, column {table.tip_columns[i]!r}: {times[b] - times[a]:.3f} s between frames "
+            f"({times[a]} to {times[b]} s), longer than max_gap = {max_gap} s; cut the file there, or let "
+            f"load_dataset(..., split_at_gaps=True) cut it{why}"
+        )
+    frames = [np.flatnonzero(np.isfinite(column)) for column in tip.T]
     k = len(frames)
-    states, levels = np.empty((n_steps + 1, 2 * k)), []  # (T+1, 2k)
+    states, levels = np.empty((len(grid), 2 * k)), []  # (T+1, 2k)
     for i, rows in enumerate(frames):
         try:
             states[:, i], states[:, k + i], *level = smooth(times[rows], tip[rows, i], grid, noise=noise, jerk=jerk)
@@ -238,42 +412,146 @@ def _resample(table: _Table, dt: float, max_gap: float, noise, jerk) -> Recordin
         table.tip_columns,
         noise_used,
         jerk_used,
+        table.frozen,
+        table.jumps,
     )
 
 
-def _check_options(dt, max_gap, noise, jerk) -> None:
+def _pieces(table: _Table, dt: float, max_gap: float) -> list[_Table]:
+    """The table cut at every run of lost frames longer than max_gap s (in any tip column): the
+    stretches between them that make at least one step of dt, each named by its time span."""
+    gaps = sorted((table.times[a], table.times[b]) for _, a, b in _long_gaps(table, max_gap))
+    merged = []  # overlapping gaps of several columns make one
+    for a, b in gaps:
+        if merged and a <= merged[-1][1]:
+            merged[-1] = (merged[-1][0], max(merged[-1][1], b))
+        else:
+            merged.append((a, b))
+    starts = [table.times[0]] + [b for _, b in merged]
+    ends = [a for a, _ in merged] + [table.times[-1]]
+    pieces = []
+    for start, end in zip(starts, ends):
+        piece = table.rows((table.times >= start) & (table.times <= end), f"{table.source} ({start:g}-{end:g} s)")
+        framed = all(np.isfinite(column).sum() >= 2 for column in piece.tip.T)
+        if framed and len(piece.commands) >= 1 and _grid(piece, dt) is not None:
+            pieces.append(piece)
+    return pieces
+
+
+# ---------------------------------------------------------------------------- the delay
+def estimate_delay(recording: Recording, *, max_delay: float = MAX_DELAY) -> float:
+    """The recording's input-to-motion delay in s, or NaN where the run cannot tell: too short
+    (fewer than ten rows per feature), no input varies, or the best delay is the longest tried.
+
+    For each candidate d of 0 to ``max_delay`` s (at most a quarter of the run) in periods, a
+    linear ridge regression predicts the input sent d periods before each step from the step's
+    states (x_t, x_{t+1}: positions and velocities), on the same rows for every d, scored by its
+    unexplained share of the inputs' variance on DELAY_FOLDS contiguous blocks of the run, each
+    held out once. The delay is the shortest d within DELAY_TOLERANCE of the best score (a flat
+    curve is no evidence of a longer delay), in s: a whole number of periods.
+
+    It needs inputs richer than the robot's own lag and tip columns that show the robot's state:
+    on the ASL trunk's three disks it finds 21-22 periods in each run; a linear map cannot undo
+    a partly observed robot's lag under smooth inputs (a point mass with 3 inputs and a 2-D tip
+    under sines: 0-27 periods with no delay), so compare the estimates of several runs."""
+    if not (isinstance(max_delay, (int, float)) and math.isfinite(max_delay) and max_delay >= 0):
+        raise ValueError(f"max_delay must be a duration >= 0 in s; got {max_delay!r}")
+    u, X, dt = recording.inputs, recording.states, recording.dt
+    T = len(u)
+    longest = min(int(round(max_delay / dt)), T // 4)
+    rows = np.arange(longest, T)
+    features = np.concatenate([X[rows], X[rows + 1]], 1)  # (N, 4k)
+    varying = np.ptp(u, axis=0) > 0
+    if longest < 2 or len(rows) < 10 * (features.shape[1] + 1) or not varying.any():
+        return math.nan
+    targets = np.concatenate([_standard(u[rows - d][:, varying]) for d in range(longest + 1)], 1)  # (N, m' (D+1))
+    unexplained = 1 - _held_out_r2(features, targets).reshape(longest + 1, -1).mean(1)  # (D+1,)
+    lower = np.concatenate([[True], unexplained[1:] < unexplained[:-1]])  # below the shorter neighbour
+    minima = lower & np.concatenate([unexplained[:-1] <= unexplained[1:], [True]])  # and not above the longer
+    best = int(np.flatnonzero(minima & (unexplained <= (1 + DELAY_TOLERANCE) * unexplained.min()))[0])
+    return math.nan if best == longest else best * dt
+
+
+def _standard(values: np.ndarray) -> np.ndarray:
+    """Columns scaled to zero mean and unit variance (constant ones left at zero)."""
+    spread = values.std(0)
+    return (values - values.mean(0)) / np.where(spread > 0, spread, 1.0)
+
+
+def _held_out_r2(features: np.ndarray, targets: np.ndarray, ridge: float = 1e-6) -> np.ndarray:
+    """R^2 per target column of a ridge regression (features standardized, an intercept) scored
+    on DELAY_FOLDS contiguous blocks, each predicted by the fit on the others: (targets,)."""
+    A = np.column_stack([_standard(features), np.ones(len(features))])  # (N, f+1)
+    error, total = np.zeros(targets.shape[1]), np.zeros(targets.shape[1])
+    for block in np.array_split(np.arange(len(A)), DELAY_FOLDS):
+        train = np.ones(len(A), bool)
+        train[block] = False
+        gram = A[train].T @ A[train] + ridge * train.sum() * np.eye(A.shape[1])
+        weights = np.linalg.solve(gram, A[train].T @ targets[train])  # (f+1, targets)
+        error += ((targets[block] - A[block] @ weights) ** 2).sum(0)
+        total += ((targets[block] - targets[train].mean(0)) ** 2).sum(0)
+    return 1 - error / np.where(total > 0, total, 1.0)
+
+
+def _with_delay(recording: Recording, delay) -> Recording:
+    """The recording with its delay: ``delay`` s, or estimated (None)."""
+    seconds = estimate_delay(recording) if delay is None else float(delay)
+    steps = int(round(seconds / recording.dt)) if math.isfinite(seconds) else 0
+    return replace(recording, delay=seconds, delay_steps=steps)
+
+
+def _check_options(dt, max_gap, noise, jerk, delay=None) -> None:
     if dt is not None and not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
         raise ValueError(f"dt must be None (the commands' period) or a positive period in s; got {dt!r}")
     if not (isinstance(max_gap, (int, float)) and math.isfinite(max_gap) and max_gap > 0):
         raise ValueError(f"max_gap must be a positive duration in s; got {max_gap!r}")
+    if delay is not None and not (
+        isinstance(delay, (int, float)) and not isinstance(delay, bool) and math.isfinite(delay) and delay >= 0
+    ):
+        raise ValueError(f"delay must be None (estimated) or an input-to-motion delay >= 0 in s; got {delay!r}")
     check_levels(noise, jerk)
 
 
-def read(path, *, inputs=None, tip=None, dt=None, max_gap: float = MAX_GAP, noise=None, jerk=None) -> Recording:
-    """One recorded run (a CSV or Parquet file) on a regular grid of period ``dt`` (s; default:
-    the commands' period). ``inputs`` and ``tip`` name the columns (default: those
-    starting with ``u``; those of x_m, y_m, z_m present). ``noise`` (m) and ``jerk``
-    (m/s^3/sqrt(Hz)) fix the smoother's levels; by default each tip column's are fitted. A bad
-    file is a ValueError naming it, and the row and column where there is one."""
-    _check_options(dt, max_gap, noise, jerk)
+def read(
+    path,
+    *,
+    inputs=None,
+    tip=None,
+    dt=None,
+    max_gap: float = MAX_GAP,
+    noise=None,
+    jerk=None,
+    dropouts: bool = True,
+    delay: float | None = None,
+) -> Recording:
+    """One recorded run (a CSV, gzip-compressed CSV or Parquet file) on a regular grid of period
+    ``dt`` (s; default: the commands' period). ``inputs`` and ``tip`` name the columns (default:
+    those starting with ``u``; those of x_m, y_m, z_m present). ``noise`` (m) and ``jerk``
+    (m/s^3/sqrt(Hz)) fix the smoother's levels; by default each tip column's are fitted. Held and
+    jumped frames are lost frames (``lost_frames``; ``dropouts=False`` keeps every frame, e.g. for
+    noise-free simulated data, whose still tip repeats exactly). ``delay`` (s) is the
+    input-to-motion delay the recording carries (None: ``estimate_delay``); its arrays are never
+    shifted, ``pairs()`` pairs them. A bad file is a ValueError naming it, and the row and column
+    where there is one."""
+    _check_options(dt, max_gap, noise, jerk, delay)
     path = Path(path)
     try:
         content = path.read_bytes()
     except OSError as error:
         raise ValueError(f"{path}: cannot read the recording ({error})") from error
-    table = _table(str(path), content, inputs, tip)
-    return _resample(table, table.command_period if dt is None else dt, max_gap, noise, jerk)
+    table = _table(str(path), content, inputs, tip, dropouts)
+    return _with_delay(_resample(table, table.command_period if dt is None else dt, max_gap, noise, jerk), delay)
 
 
 # ---------------------------------------------------------------------------- a folder of runs
 def recording_files(paths_or_folder) -> list[Path]:
-    """The recordings a folder holds (its .csv and .parquet files, by name) or the files listed."""
+    """The recordings a folder holds (its .csv, .csv.gz and .parquet files, by name) or the files listed."""
     if isinstance(paths_or_folder, (str, Path)):
         path = Path(paths_or_folder)
         if path.is_dir():
-            files = sorted(p for p in path.iterdir() if p.suffix.lower() in SUFFIXES and p.is_file())
+            files = sorted(p for p in path.iterdir() if _suffix(p) in SUFFIXES and p.is_file())
             if not files:
-                raise ValueError(f"{path}: no recording files ({' or '.join(SUFFIXES)}) in the folder")
+                raise ValueError(f"{path}: no recording files ({', '.join(SUFFIXES)}) in the folder")
             return files
         paths_or_folder = [path]
     files = [Path(p) for p in paths_or_folder]
@@ -308,6 +586,9 @@ def load_dataset(
     max_gap: float = MAX_GAP,
     noise=None,
     jerk=None,
+    dropouts: bool = True,
+    delay: float | None = None,
+    split_at_gaps: bool = False,
     episode_seconds: float | None = None,
     fractions=(0.8, 0.1),
     seed: int = 0,
@@ -316,12 +597,18 @@ def load_dataset(
     """The Dataset of a folder (or list) of recordings, as training uses it (no rod: robot=None).
 
     Every recording is read as by ``read`` (``dt``: default the median of the files' command
-    periods) with the same columns, then cut into episodes of ``episode_seconds`` (default: the
-    shortest recording; see ``episodes``). The split is by recording (``split_episodes`` over the
-    recordings, with ``fractions`` and ``seed``): every episode of a run lands in the same split.
-    The result is cached under ``data_dir`` (None: not cached) by the files' contents and these
-    options, written atomically after every file was read, so a bad file leaves no cache."""
-    _check_options(dt, max_gap, noise, jerk)
+    periods) with the same columns. ``split_at_gaps``: a file with runs of lost frames longer
+    than ``max_gap`` is cut there into recordings of its own instead of refused; stretches
+    shorter than an episode are left out (default episode: the shortest of the files' longest
+    stretches). Each step is paired with the input sent ``delay`` s before
+    (in whole periods: ``Dataset.delay_steps``); None: the median of the recordings' estimates
+    (``estimate_delay``, kept in ``Dataset.delays``). Then the recordings are cut into episodes of
+    ``episode_seconds`` (default: the shortest recording; see ``episodes``). The split is by file
+    (``split_episodes`` over the files, with ``fractions`` and ``seed``): every episode of a run
+    lands in the same split. The result is cached under ``data_dir`` (None: not cached) by the
+    files' contents and these options, written atomically after every file was read, so a bad
+    file leaves no cache."""
+    _check_options(dt, max_gap, noise, jerk, delay)
     if episode_seconds is not None and not (
         isinstance(episode_seconds, (int, float)) and math.isfinite(episode_seconds) and episode_seconds > 0
     ):
@@ -350,14 +637,18 @@ def load_dataset(
         max_gap=max_gap,
         noise=noise,
         jerk=jerk,
+        dropouts=dropouts,
+        delay=delay,
+        split_at_gaps=split_at_gaps,
         episode_seconds=episode_seconds,
         fractions=list(fractions),
         seed=seed,
         version=RECORDINGS_VERSION,
+        revision=LOADER_REVISION,
     )
 
     def compute() -> dict:
-        tables = [_table(str(path), content, inputs, tip) for path, content in zip(files, contents)]
+        tables = [_table(str(path), content, inputs, tip, dropouts) for path, content in zip(files, contents)]
         for table in tables[1:]:
             for what in ("input_columns", "tip_columns"):
                 if getattr(table, what) != getattr(tables[0], what):
@@ -366,35 +657,86 @@ def load_dataset(
                         f"{list(getattr(tables[0], what))} of {tables[0].source}; name them with inputs= and tip="
                     )
         period = float(np.median([table.command_period for table in tables])) if dt is None else dt
-        runs = [_resample(table, period, max_gap, noise, jerk) for table in tables]
-        lengths = [len(run.inputs) for run in runs]
-        n_steps = min(lengths) if episode_seconds is None else int(round(episode_seconds / period))
+        owners, runs = range(len(tables)), tables
+        if split_at_gaps:
+            pieces = [(i, piece) for i, table in enumerate(tables) for piece in _pieces(table, period, max_gap)]
+            if not pieces:
+                raise ValueError(f"{tables[0].source}: no stretch between long gaps makes a step, in any file")
+            owners, runs = zip(*pieces)
+        runs = [_with_delay(_resample(run, period, max_gap, noise, jerk), delay) for run in runs]
+        if delay is None:
+            estimates = [run.delay for run in runs if math.isfinite(run.delay)]
+            if not estimates:
+                raise ValueError(
+                    f"{runs[0].source}: too short to estimate an input-to-motion delay, as is every recording; "
+                    "pass delay= (s; 0 when the inputs act at once)"
+                )
+            steps = int(round(float(np.median(estimates)) / period))
+        else:
+            steps = int(round(delay / period))
+        if split_at_gaps:  # stretches no longer than the delay make no pair
+            owners, runs = zip(*[(i, run) for i, run in zip(owners, runs) if len(run.inputs) > steps])
+        for run in runs:
+            if len(run.inputs) <= steps:
+                raise ValueError(f"{run.source}: {len(run.inputs)} steps, no more than the delay ({steps} steps)")
+        paired = [run.pairs(steps) for run in runs]
+        lengths = [len(u) for u, _ in paired]
+        if episode_seconds is not None:
+            n_steps = int(round(episode_seconds / period))
+        elif split_at_gaps:  # each file's longest stretch stays whole; shorter ones are left out
+            n_steps = min(max(n for i, n in zip(owners, lengths) if i == file) for file in sorted(set(owners)))
+        else:
+            n_steps = min(lengths)
         if n_steps < 1:
             raise ValueError(f"episode_seconds = {episode_seconds} is shorter than one step of {period} s")
         short = [run.source for run, length in zip(runs, lengths) if length < n_steps]
-        if short:
+        if short and not split_at_gaps:
             raise ValueError(
                 f"{short[0]}: shorter than one episode ({episode_seconds} s = {n_steps} steps of {period} s); "
                 "pass a shorter episode_seconds"
             )
-        cuts = episodes(lengths, n_steps)
-        owner = np.array([index for index, _ in cuts])
+        long_enough = [i for i, length in enumerate(lengths) if length >= n_steps]  # with split_at_gaps: pieces
+        cuts = [(long_enough[i], start) for i, start in episodes([lengths[i] for i in long_enough], n_steps)]
+        owner = np.array([owners[i] for i, _ in cuts])
         train, val, test = (np.flatnonzero(np.isin(owner, chosen)) for chosen in splits)
+        for name, chosen in zip(("train", "validation", "test"), (train, val, test)):
+            if len(chosen) == 0:
+                raise ValueError(
+                    f"no stretch between long gaps of the {name} split's files is one episode long "
+                    f"({n_steps} steps of {period} s); pass a shorter episode_seconds or a longer max_gap"
+                )
         return dict(
-            u=np.stack([runs[i].inputs[s : s + n_steps] for i, s in cuts]),  # (E, T, m)
-            states=np.stack([runs[i].states[s : s + n_steps + 1] for i, s in cuts]),  # (E, T+1, d)
+            u=np.stack([paired[i][0][s : s + n_steps] for i, s in cuts]),  # (E, T, m)
+            states=np.stack([paired[i][1][s : s + n_steps + 1] for i, s in cuts]),  # (E, T+1, d)
             train=train,
             val=val,
             test=test,
             dt=np.float64(period),
+            delay_steps=np.int64(steps),
+            delays=np.array([run.delay for run in runs] if delay is None else [], float),
         )
 
     if data_dir is None:
-        return _dataset(compute(), f"recordings-{content_key(spec)}")
-    path = cache_file(data_dir, "recordings", spec)
-    return _dataset(
-        cached_arrays(path, compute, valid=lambda arrays: _dataset(arrays, path.stem) is not None), path.stem
-    )
+        data = _dataset(compute(), f"recordings-{content_key(spec)}")
+    else:
+        path = cache_file(data_dir, "recordings", spec)
+        arrays = cached_arrays(path, compute, valid=lambda cached: _dataset(cached, path.stem) is not None)
+        data = _dataset(arrays, path.stem)
+    estimates = np.array([seconds for seconds in data.delays if math.isfinite(seconds)])
+    if len(estimates) > 1 and np.subtract(*np.percentile(estimates, [75, 25])) > DELAY_SPREAD * data.dt:
+        warnings.warn(
+            f"the recordings' delay estimates disagree ({1e3 * estimates.min():.0f} to {1e3 * estimates.max():.0f} ms, "
+            f"quartiles {np.round(1e3 * np.percentile(estimates, [25, 75])).tolist()} ms): the delay is poorly "
+            f"identified from these runs and their median ({data.delay_steps} periods) may be wrong; pass delay= "
+            "(s) if you know it (Dataset.delays has the estimates)",
+            DelayWarning,
+            stacklevel=2,
+        )
+    return data
+
+
+class DelayWarning(UserWarning):
+    """The recordings' input-to-motion delay estimates disagree (see ``load_dataset``)."""
 
 
 def _dataset(arrays: dict, key: str) -> Dataset | None:
@@ -406,6 +748,8 @@ def _dataset(arrays: dict, key: str) -> Dataset | None:
             robot=None,
             gravity=None,
             dt=float(arrays["dt"]),
+            delay_steps=int(arrays["delay_steps"]),
+            delays=tuple(float(seconds) for seconds in arrays["delays"]),
         )
     except (KeyError, TypeError, ValueError):
         return None

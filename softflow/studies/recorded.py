@@ -245,10 +245,12 @@ def record_grid(profile_name: str, workdir, workers: int = 1) -> None:
 
 def _read(files: list[Path], workdir: Path) -> data.Dataset:
     """The runs as training reads them: the motor commands in (mm), the tracked tip and its
-    velocity (RTS smoother) on the commands' period; one episode per run."""
+    velocity (RTS smoother) on the commands' period, each step paired with the command sent at
+    its start (delay 0, as pre-registered); one episode per run."""
     loaded = recordings.load_dataset(
         files,
         inputs=recorder.motor_columns(HW_ROBOT),
+        delay=0.0,
         fractions=LOADER_FRACTIONS,
         seed=SPLIT_SEED,
         data_dir=workdir / "datasets",
