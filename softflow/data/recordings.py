@@ -65,8 +65,10 @@ WIDEST_SPAN = 10.0  # m: a tip column spanning more is millimetres written as me
 class Recording:
     """One recorded run on a regular grid: times (T+1,) s, inputs (T, m) (the mean command over
     each step, in the file's units), states (T+1, d) (tip positions in m, then their velocities in
-    m/s, both smoothed), the period ``dt`` (s), the columns they came from, and the smoother's
-    levels per tip column (frame noise in m, jerk density in m/s^3/sqrt(Hz))."""
+    m/s, both smoothed), the period ``dt`` (s), the columns they came from, the smoother's levels
+    per tip column (frame noise in m, jerk density in m/s^3/sqrt(Hz)), the frames lost per tip
+    column, and the input-to-motion delay. The arrays are as recorded (input t is the one sent
+    at the start of step t); ``pairs()`` pairs them across the delay."""
 
     source: str
     times: np.ndarray
@@ -447,13 +449,15 @@ def estimate_delay(recording: Recording, *, max_delay: float = MAX_DELAY) -> flo
     linear ridge regression predicts the input sent d periods before each step from the step's
     states (x_t, x_{t+1}: positions and velocities), on the same rows for every d, scored by its
     unexplained share of the inputs' variance on DELAY_FOLDS contiguous blocks of the run, each
-    held out once. The delay is the shortest d within DELAY_TOLERANCE of the best score (a flat
-    curve is no evidence of a longer delay), in s: a whole number of periods.
+    held out once. The delay is the first local best within DELAY_TOLERANCE of the best score (a
+    flat curve is no evidence of a longer delay), in s: a whole number of periods.
 
     It needs inputs richer than the robot's own lag and tip columns that show the robot's state:
-    on the ASL trunk's three disks it finds 21-22 periods in each run; a linear map cannot undo
+    the ASL trunk's runs give 22-23 periods from its three disks, 21 from the tip alone; the
+    smoother's use of later frames makes it a period short for step inputs; a linear map cannot undo
     a partly observed robot's lag under smooth inputs (a point mass with 3 inputs and a 2-D tip
-    under sines: 0-27 periods with no delay), so compare the estimates of several runs."""
+    under sines, with no delay: 0 for 4 of 10 runs, 17-39 periods for the others), so compare
+    the estimates of several runs (``load_dataset`` warns where they disagree)."""
     if not (isinstance(max_delay, (int, float)) and math.isfinite(max_delay) and max_delay >= 0):
         raise ValueError(f"max_delay must be a duration >= 0 in s; got {max_delay!r}")
     u, X, dt = recording.inputs, recording.states, recording.dt
