@@ -3,6 +3,7 @@
 #   make test        unit tests + nbval of the committed notebooks (ci profile)
 #   make study       recompute every cell of the studies (notebooks 08-11) on a local Dask cluster
 #   make strip       clean the committed notebooks after regenerating their ci outputs
+#   make portability make test on fresh clones under three forced kernel paths
 SHELL := /bin/bash
 PYTHON_BASE ?= python3.11
 VENV := .venv
@@ -12,7 +13,7 @@ PROFILE ?= paper
 BENCH_PROFILE ?= ci
 NOTEBOOKS := $(sort $(wildcard notebooks/[0-9]*.ipynb))
 
-.PHONY: venv test lint reproduce study bench bench-setup lab clean lock strip
+.PHONY: venv test lint reproduce study bench bench-setup portability lab clean lock strip
 
 venv: $(STAMP)
 
@@ -112,6 +113,11 @@ bench: $(STAMP) $(ELASTICA)  # PyElastica is a benchmark-only dependency, in its
 bench-setup: $(STAMP)
 	$(PY) benchmarks/bench_fresh_clone.py
 	$(PY) benchmarks/bench_notebooks.py
+
+# make test on fresh clones under three kernel paths forced by the environment (native, generic
+# x86-64, AVX2), one after the other (about three times make test): figures/bench/portability*.csv.
+portability: $(STAMP)
+	$(PY) benchmarks/bench_portability.py
 
 lab: $(STAMP)
 	$(VENV)/bin/jupyter lab notebooks

@@ -25,10 +25,11 @@ DURATION = re.compile(r"^([\d.]+)s (?:setup|call|teardown)\s+(.+?)::", re.MULTIL
 SESSION_WALL = re.compile(r"^=+ .* in ([\d.]+)s", re.MULTILINE)  # "=== 466 passed in 859.15s (0:14:19) ==="
 
 
-def timed(command: list[str], cwd: Path, log: Path) -> tuple[float, int]:
+def timed(command: list[str], cwd: Path, log: Path, forced: dict | None = None) -> tuple[float, int]:
+    """Wall seconds and exit code of ``command`` run as CI runs it, with ``forced`` variables set."""
     start = time.perf_counter()
     with open(log, "w") as out:
-        env = dict(os.environ, CI="true", PYTEST_ADDOPTS="--durations=0")
+        env = dict(os.environ, CI="true", PYTEST_ADDOPTS="--durations=0", **(forced or {}))
         code = subprocess.run(command, cwd=cwd, stdout=out, stderr=subprocess.STDOUT, env=env)
     return time.perf_counter() - start, code.returncode
 

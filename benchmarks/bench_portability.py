@@ -1,0 +1,129 @@
+"""`make test` on a fresh clone under kernel paths forced by the environment (make portability):
+the CPU's own (native), a generic x86-64 one and an AVX2 one, one after the other, none of them
+set by the Makefile, so the suite is shown to pass on paths it does not choose. Each run's
+outcome and wall time, with the CPU model and its flags, go to figures/bench/portability.csv;
+how far each path's trained ci results (the full-precision CSVs the ci notebooks write) lie from
+the native ones goes to figures/bench/portability_spread.csv: the spread that sets the
+notebooks' tolerance (notebooks/conftest.py). Logs in build/bench/; run it with the cores free.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+from datetime import UTC, datetime
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from bench_fresh_clone import timed
+from results_file import REPO, RESULTS, commit, machine
+
+NUMPY_SSE42 = "SSE SSE2 SSE3 SSSE3 SSE41 POPCNT SSE42"
+PATHS = {
+    "native": {},
+    "generic": dict(
+        ATEN_CPU_CAPABILITY="default",
+        MKL_CBWR="COMPATIBLE",
+        OPENBLAS_CORETYPE="Prescott",
+        NPY_ENABLE_CPU_FEATURES=NUMPY_SSE42,
+    ),
+    "avx2": dict(
+        ATEN_CPU_CAPABILITY="avx2",
+        MKL_CBWR="AVX2",
+        OPENBLAS_CORETYPE="Haswell",
+        NPY_ENABLE_CPU_FEATURES=f"{NUMPY_SSE42} AVX F16C FMA3 AVX2",
+    ),
+}
+SPREAD_LOG = "SOFTFLOW_NBVAL_SPREAD"  # notebooks/conftest.py logs each tolerant cell's deviation here
+
+
+def cpu_flags() -> str:
+    """The CPU's vector extensions (the flags that choose kernels), from /proc/cpuinfo."""
+    info = Path("/proc/cpuinfo")
+    if not info.exists():
+        return ""
+    lines = info.read_text().splitlines()
+    flags = next((line.split(":", 1)[1].split() for line in lines if line.startswith("flags")), [])
+    return " ".join(f for f in flags if f.startswith(("sse", "ssse", "avx", "fma", "f16c", "amx")))
+
+
+def kernels(python: Path, env: dict) -> str:
+    """What numpy and torch say they run under ``env``."""
+    probe = (
+        "import numpy, torch; from numpy._core._multiarray_umath import __cpu_features__ as f; "
+        "print('numpy', max((k for k, v in f.items() if v and k.startswith('AVX')), default='SSE'), "
+        "'torch', torch.backends.cpu.get_cpu_capability())"
+    )
+    result = subprocess.run([str(python), "-c", probe], capture_output=True, text=True, env=env)
+    return result.stdout.strip() or result.stderr.strip()[-200:]
+
+
+def numeric_spread(native: Path, other: Path) -> dict:
+    """{file: largest relative difference of any number} between two build/ci folders' CSVs."""
+    out = {}
+    for path in sorted(native.glob("*.csv")):
+        mine = other / path.name
+        if not mine.exists():
+            continue
+        a, b = pd.read_csv(path), pd.read_csv(mine)
+        numbers = [c for c in a.columns if pd.api.types.is_float_dtype(a[c]) and c in b and len(a) == len(b)]
+        numbers = [c for c in numbers if not c.endswith(("seconds", "minutes", "_ms", "_min"))]  # wall times
+        if not numbers:
+            continue
+        x, y = a[numbers].to_numpy(float), b[numbers].to_numpy(float)
+        scale = np.maximum(np.abs(x), 1e-9)
+        out[path.name] = float(np.nanmax(np.abs(x - y) / scale, initial=0.0))
+    return out
+
+
+def main() -> int:
+    rows, spreads, outputs = [], [], {}
+    logs = REPO / "build" / "bench"
+    logs.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory() as scratch:
+        for name, forced in PATHS.items():
+            clone = Path(scratch) / name
+            subprocess.run(["git", "clone", "--quiet", str(REPO), str(clone)], check=True)
+            venv_seconds, venv_code = timed(["make", "venv"], clone, logs / f"portability_{name}_venv.log")
+            spread_log = Path(scratch) / f"{name}.jsonl"
+            env = dict(forced, **{SPREAD_LOG: str(spread_log)})
+            seconds, code = timed(["make", "test"], clone, logs / f"portability_{name}_test.log", env)
+            cells = [json.loads(line) for line in spread_log.read_text().splitlines()] if spread_log.exists() else []
+            relative = [cell["relative"] for cell in cells if cell["relative"] is not None]
+            rows.append(
+                dict(
+                    path=name,
+                    environment=" ".join(f"{k}={v}" for k, v in forced.items()) or "(none)",
+                    kernels=kernels(clone / ".venv" / "bin" / "python", dict(os.environ, **forced)),
+                    passed=venv_code == 0 and code == 0,
+                    venv_minutes=round(venv_seconds / 60, 2),
+                    test_minutes=round(seconds / 60, 2),
+                    tolerant_cells=len(cells),
+                    largest_printed_relative_difference=max(relative, default=0.0),
+                    machine=machine(),
+                    cpu_flags=cpu_flags(),
+                    date=datetime.now(UTC).strftime("%Y-%m-%d"),
+                    commit=commit(),
+                )
+            )
+            outputs[name] = Path(scratch) / f"{name}-ci"
+            shutil.copytree(clone / "build" / "ci", outputs[name], ignore=shutil.ignore_patterns("*.png"))
+            print(f"{name}: {'passed' if rows[-1]['passed'] else 'FAILED'} in {seconds / 60:.1f} min", flush=True)
+            shutil.rmtree(clone / ".venv")
+        for name in list(PATHS)[1:]:
+            for file, value in numeric_spread(outputs["native"], outputs[name]).items():
+                spreads.append(dict(path=name, file=file, largest_relative_difference=value))
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    pd.DataFrame(rows).to_csv(RESULTS / "portability.csv", index=False)
+    pd.DataFrame(spreads).to_csv(RESULTS / "portability_spread.csv", index=False)
+    print(pd.DataFrame(rows).drop(columns=["cpu_flags"]).to_string(index=False))
+    return 0 if all(row["passed"] for row in rows) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
