@@ -6,7 +6,7 @@ import warnings
 import numpy as np
 import pytest
 import torch
-from conftest import QUICK, SMALL
+from small_runs import QUICK, SMALL
 
 from softflow import control, data, models, training
 from softflow.models import checkpoints

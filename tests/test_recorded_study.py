@@ -11,7 +11,7 @@ from collections import Counter
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import assert_like_shipped
+from small_runs import assert_like_shipped
 
 from softflow import hardware
 from softflow.control import planning

@@ -17,7 +17,7 @@ computing every ci cell): one cell of every study, among its cheapest by the shi
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import assert_like_shipped
+from small_runs import assert_like_shipped
 
 from softflow.studies import STUDIES, closed_loop, sweep, table1
 

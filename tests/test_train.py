@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 import torch
-from conftest import SMALL
+from small_runs import SMALL
 
 from softflow import data, training
 from softflow.profiles import TrainConfig
