@@ -36,6 +36,10 @@ recorded: models trained on nothing but recorded runs of the twin of the hardwar
     cable friction, MLP and RF on its first 5 and 15 minutes and on 60 minutes without friction,
     3 seeds at 20 000 steps, their plans motor commands replayed on the plant as they are;
     against the shipped RF-FWD open, open-calibrated and closed-ilc-calibrated under each gap.
+trunk: a real robot, fixed before any row ran: the ASL trunk's recorded runs (datasets/asl_trunk/),
+    MLP, LSTM, Transformer, RF and RF-FWD trained on one run with the tip alone or all three disks
+    observed, 3 seeds at 5 000 steps, scored per step and through a forward judge on two held-out
+    runs beside the recorded inputs, the training mean and persistence.
 """
 
 from __future__ import annotations
@@ -50,6 +54,7 @@ from softflow.studies import (
     recorded,
     smoke,
     table1,
+    trunk,
     twin_burst,
     two_segment,
 )
@@ -67,4 +72,5 @@ STUDIES = {
     "design": Study(design.cells, design.run, design.models),
     "two_segment": Study(two_segment.cells, two_segment.run, two_segment.models),
     "recorded": Study(recorded.cells, recorded.run, recorded.models),
+    "trunk": Study(trunk.cells, trunk.run, trunk.models),
 }

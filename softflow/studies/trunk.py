@@ -1,0 +1,319 @@
+"""The trunk study: a real robot. The Stanford ASL trunk (datasets/asl_trunk/: three disks on a
+hanging backbone, six servo motors pulling twelve tendons, motion capture at 100 Hz) learnt from
+one recorded run and judged on two held-out runs, with the tip alone observed or all three disks.
+
+Fixed before any row (docs/assumptions.md, "The trunk study"):
+- Data: ``random_1`` trains (its first 85 % of 2-s episodes; the last 15 % validate), ``random_2``
+  (the same excitation) and ``circles`` (another: out of distribution) are held out. Every run
+  read with ``max_gap`` 0.6 s (the only longer losses are of disks 1-2: 0.33 s in random_2, 0.29
+  and 0.50 s at the start of circles; the tip has none) and one input-to-motion delay for the
+  study, the training run's estimate from all three disks (``estimate_delay``), so every model and
+  the judge pair step t with the same input.
+- Models MLP, LSTM, Transformer, RF, RF-FWD (RF-Physical needs a rod model: none here), seeds 0-2,
+  on ``tip`` (x3, y3, z3 and their velocities) or ``disks`` (all nine and theirs), each 5 000
+  optimiser steps (batch 512, no early stop; the best validation checkpoint).
+- Scores on each held-out run: (a) per step, the u error (degrees, RMS per input) against the
+  recorded inputs; (b) a forward judge of the trunk (the forward surrogate on all disks, trained on
+  every run, held-out ones included, 10 000 steps) rolls each planner's inputs out over windows of
+  0.5 s and 1 s starting every 5 s from the recorded state, and the tip it predicts is compared
+  with the recorded tip (mm, RMS over the window); beside the models: the recorded inputs (the
+  judge's floor), the training run's mean input, and persistence (the input sent one period
+  before); (c) the spread of u given (x_t, x_t+1) on the training run, tip alone and all disks, over
+  the estimator's floor; (d) for the flows, the spread of 16 draws against their error.
+- Rule: a ranking only where the bootstrap interval (over seeds and windows) and the paired
+  t-interval (over windows) of a difference both exclude zero; the judge ranks nothing unless it
+  tells the naive planners from the recorded inputs by that rule. Best flow (RF, RF-FWD) against
+  best baseline (MLP, LSTM, Transformer) per observation, run and window: does the tip alone give
+  the flows a win that all disks take away, as on the simulated two-segment rod (notebook 12)?
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from softflow import data, training
+from softflow.control.planning import Controller, recorded_range
+from softflow.data import recordings
+from softflow.profiles import FIXED_BUDGET, TrainConfig
+from softflow.store import REPO, cache_file, cached_arrays
+from softflow.studies import ambiguity
+from softflow.studies.study import fixed_budget, trained
+
+TRUNK = REPO / "datasets" / "asl_trunk"
+TRAINING_RUN, HELD_OUT = "random_1", ("random_2", "circles")
+INPUTS = tuple(f"u{i}" for i in range(1, 7))
+DISKS = tuple(f"{axis}{disk}_m" for disk in (1, 2, 3) for axis in "xyz")
+OBSERVATIONS = {"tip": DISKS[6:], "disks": DISKS}
+MAX_GAP = 0.6  # s
+DT = 0.01  # s: the trunk's motion capture and commands, 100 Hz (datasets/asl_trunk/README.md)
+EPISODE_STEPS = 200  # 2 s
+VALIDATION = 0.15  # the last share of the training run's episodes
+WINDOW_EVERY = 5.0  # s between the starts of the judge's windows
+JUDGE = "forward"
+BASELINES, FLOWS = ("mlp", "lstm", "transformer"), ("rf", "rf-fwd")
+NAIVE = ("recorded", "training-mean", "persistence")  # planners that learn nothing: the judge's checks
+TRUNK_GRID = {
+    "ci": dict(
+        models=("mlp", "rf"),
+        seeds=(0,),
+        observations=("tip", "disks"),
+        windows=(0.5,),
+        draws=4,
+        train=FIXED_BUDGET["ci"],
+        judge=FIXED_BUDGET["ci"],
+        seconds=30.0,  # of each run
+    ),
+    "paper": dict(
+        models=(*BASELINES, *FLOWS),
+        seeds=(0, 1, 2),
+        observations=("tip", "disks"),
+        windows=(0.5, 1.0),
+        draws=16,
+        train=TrainConfig(epochs=10, steps_per_epoch=500, patience=10),
+        judge=TrainConfig(epochs=20, steps_per_epoch=500, patience=20),
+        seconds=None,  # whole runs
+    ),
+}
+
+
+def cells(profile_name: str) -> list[dict]:
+    grid = TRUNK_GRID[profile_name]
+    trained_cells = [
+        dict(study="trunk", model=model, seed=seed, observation=observation)
+        for observation in grid["observations"]
+        for model in grid["models"]
+        for seed in grid["seeds"]
+    ]
+    return [dict(study="trunk", model=name, seed=0, observation="disks") for name in NAIVE] + trained_cells
+
+
+def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> list[dict]:
+    """One planner's rows: per held-out run and judge window, the judged tip error; each row also
+    carries the cell's per-step scores on that run."""
+    grid = TRUNK_GRID[profile_name]
+    delay = study_delay(profile_name, workdir)
+    runs = {name: paired_run(name, cell["observation"], delay, profile_name, workdir) for name in HELD_OUT}
+    judge = judge_model(profile_name, delay, device, workdir)
+    full = {name: paired_run(name, "disks", delay, profile_name, workdir) for name in HELD_OUT}
+    if cell["model"] in NAIVE:
+        training_mean = paired_run(TRAINING_RUN, "disks", delay, profile_name, workdir)[0].mean(0)  # (6,)
+        plans = {name: naive_plan(cell["model"], u, training_mean) for name, (u, _) in runs.items()}
+        per_step = {name: dict(u_rmse_deg=_rms(plans[name] - runs[name][0])) for name in HELD_OUT}
+        measured = {}
+    else:
+        dataset = training_set(cell["observation"], delay, profile_name, workdir)
+        model, checkpoint = training.ensure_trained(
+            cell["model"],
+            fixed_budget(profile_name, grid["train"]),
+            dataset,
+            None,
+            None,
+            seed=cell["seed"],
+            root=workdir / "models" / profile_name,
+            device=device,
+        )
+        u_range = recorded_range(checkpoint["recorded"])  # as load_controller clips a model of recordings
+        controller = Controller(model, cell["model"], robot=None, gravity=None, u_range=u_range, workspace_margin=None)
+        plans = {name: controller.plan(states) for name, (_, states) in runs.items()}  # (T, 6): step t's input
+        per_step = {
+            name: dict(
+                u_rmse_deg=_rms(plans[name] - runs[name][0]),
+                **_flow_scores(controller, runs[name], grid["draws"]),
+            )
+            for name in HELD_OUT
+        }
+        measured = dict(
+            **ambiguity.cached_spread(dataset, workdir),
+            best_val=float(checkpoint["best_val"]),
+            train_minutes=float(checkpoint["wall_seconds"]) / 60,
+        )
+    rows = []
+    for name in HELD_OUT:
+        u, states = full[name]
+        for seconds in grid["windows"]:
+            errors = judged_errors(judge, states, plans[name], round(seconds / DT), delay)
+            rows += [
+                dict(
+                    run=name,
+                    window_s=seconds,
+                    family=f"{name}, {seconds:g} s",
+                    reference=f"{name}-{seconds:g}s-{i:02d}",
+                    tip_mm=float(error),
+                    delay_steps=delay,
+                    **per_step[name],
+                    **measured,
+                )
+                for i, error in enumerate(errors)
+            ]
+    return rows
+
+
+def _rms(a) -> float:
+    return float(np.sqrt(np.mean(np.square(a))))
+
+
+def _flow_scores(controller: Controller, pair, draws: int) -> dict:
+    """For a flow, its draws' spread and how it ranks their error (``ambiguity.per_step_scores``)."""
+    if not controller.generative:
+        return {}
+    u, states = pair
+    held_out = data.Dataset(
+        u=u[None],
+        states=states[None],
+        train=np.zeros(0, int),
+        val=np.zeros(0, int),
+        test=np.array([0]),
+        robot=None,
+        gravity=None,
+        dt=DT,
+    )
+    scores = ambiguity.per_step_scores(controller, held_out, draws)
+    return {k: v for k, v in scores.items() if k != "u_rmse_test"}
+
+
+def naive_plan(name: str, u: np.ndarray, training_mean: np.ndarray) -> np.ndarray:
+    """(T, 6) inputs of a planner that learns nothing: the recorded inputs themselves (the judge's
+    floor), the training run's mean input, or persistence (each step given the input before it)."""
+    if name == "recorded":
+        return u
+    if name == "training-mean":
+        return np.broadcast_to(training_mean, u.shape).copy()
+    if name == "persistence":
+        return np.concatenate([u[:1], u[:-1]])
+    raise ValueError(f"naive planner must be one of {list(NAIVE)}; got {name!r}")
+
+
+def judged_errors(judge, states: np.ndarray, plan: np.ndarray, length: int, delay: int) -> np.ndarray:
+    """The judge's tip error (mm, RMS over the window) for windows of ``length`` steps starting
+    every WINDOW_EVERY s: from the recorded state (all disks, (T+1, 18)) at each window's start,
+    step t advanced by the planned input paired with it (plan (T, 6)), the disk-3 position against
+    the recorded one."""
+    every = int(round(WINDOW_EVERY / DT))
+    starts = np.arange(0, len(plan) - length + 1, every)  # (W,)
+    x = torch.as_tensor(states[starts], dtype=torch.float32)  # (W, 18)
+    tips = []
+    with torch.inference_mode():
+        for k in range(length):
+            u = torch.as_tensor(plan[starts + k], dtype=torch.float32)  # (W, 6)
+            x = judge.predict_next(x, u)
+            tips.append(x[:, 6:9].numpy())
+    predicted = np.stack(tips, 1)  # (W, length, 3)
+    recorded = np.stack([states[s + 1 : s + 1 + length, 6:9] for s in starts])  # (W, length, 3)
+    return 1e3 * np.sqrt(np.mean(np.sum((predicted - recorded) ** 2, -1), axis=1))
+
+
+# ---------------------------------------------------------------------------- data
+def _file(name: str) -> Path:
+    return TRUNK / f"{name}.csv.gz"
+
+
+def study_delay(profile_name: str, workdir: Path) -> int:
+    """The study's delay in periods: the training run's estimate from all three disks (cached)."""
+
+    def compute():
+        run = recordings.read(_file(TRAINING_RUN), inputs=list(INPUTS), tip=list(DISKS), max_gap=MAX_GAP)
+        tip = recordings.read(_file(TRAINING_RUN), inputs=list(INPUTS), tip=list(DISKS[6:]), max_gap=MAX_GAP)
+        return dict(delay_steps=np.int64(run.delay_steps), tip_delay_steps=np.int64(tip.delay_steps))
+
+    path = cache_file(workdir, "trunk-delay", dict(file=_file(TRAINING_RUN).name, version=recordings.LOADER_REVISION))
+    return int(cached_arrays(path, compute)["delay_steps"])
+
+
+def paired_run(name: str, observation: str, delay: int, profile_name: str, workdir: Path):
+    """Inputs (T, 6) and states (T+1, 2k) of one run, step t paired with the input sent ``delay``
+    periods before it (the profile's first ``seconds`` of it only; cached)."""
+    seconds = TRUNK_GRID[profile_name]["seconds"]
+
+    def compute():
+        run = recordings.read(
+            _file(name), inputs=list(INPUTS), tip=list(OBSERVATIONS[observation]), max_gap=MAX_GAP, delay=delay * DT
+        )
+        u, states = run.pairs()
+        if run.dt != DT:
+            raise ValueError(f"{name}: a period of {run.dt} s; the trunk's runs are at {DT} s")
+        if seconds is not None:
+            n = int(round(seconds / run.dt))
+            u, states = u[:n], states[: n + 1]
+        return dict(u=u, states=states)
+
+    spec = dict(run=name, observation=observation, delay=delay, seconds=seconds, version=recordings.LOADER_REVISION)
+    arrays = cached_arrays(cache_file(workdir, "trunk-run", spec), compute)
+    return arrays["u"], arrays["states"]
+
+
+def _episodes(u: np.ndarray, states: np.ndarray, n_steps: int):
+    cuts = recordings.episodes([len(u)], n_steps)
+    return np.stack([u[s : s + n_steps] for _, s in cuts]), np.stack([states[s : s + n_steps + 1] for _, s in cuts])
+
+
+def training_set(observation: str, delay: int, profile_name: str, workdir: Path) -> data.Dataset:
+    """The training run cut into 2-s episodes, the last VALIDATION of them validating; the held-out
+    random run's episodes as its test split (for the per-step scores of the training loop only)."""
+    u, states = _episodes(*paired_run(TRAINING_RUN, observation, delay, profile_name, workdir), EPISODE_STEPS)
+    n_val = max(1, round(VALIDATION * len(u)))
+    key = f"trunk-{observation}-{profile_name}-d{delay}-r{recordings.LOADER_REVISION}"
+    return data.Dataset(
+        u=u,
+        states=states,
+        train=np.arange(len(u) - n_val),
+        val=np.arange(len(u) - n_val, len(u)),
+        test=np.zeros(0, int),
+        key=key,
+        robot=None,
+        gravity=None,
+        dt=DT,
+        delay_steps=delay,
+        input_columns=INPUTS,
+        tip_columns=OBSERVATIONS[observation],
+    )
+
+
+def judge_model(profile_name: str, delay: int, device: str, workdir: Path):
+    """The forward judge: the forward surrogate on all disks, trained on every run (held-out ones
+    included; the inverse models never see them), the last 15 % of each run's episodes validating."""
+    pieces = [
+        _episodes(*paired_run(name, "disks", delay, profile_name, workdir), EPISODE_STEPS)
+        for name in (TRAINING_RUN, *HELD_OUT)
+    ]
+    u, states = (np.concatenate(parts) for parts in zip(*pieces))
+    owner = np.concatenate([np.full(len(p[0]), i) for i, p in enumerate(pieces)])
+    position = np.concatenate([np.arange(len(p[0])) / len(p[0]) for p in pieces])
+    judged = data.Dataset(
+        u=u,
+        states=states,
+        train=np.flatnonzero(position < 1 - VALIDATION),
+        val=np.flatnonzero(position >= 1 - VALIDATION),
+        test=np.zeros(0, int),
+        key=f"trunk-judge-{profile_name}-d{delay}-r{recordings.LOADER_REVISION}-{len(owner)}",
+        robot=None,
+        gravity=None,
+        dt=DT,
+        delay_steps=delay,
+    )
+    model, _ = training.ensure_trained(
+        JUDGE,
+        fixed_budget(profile_name, TRUNK_GRID[profile_name]["judge"]),
+        judged,
+        None,
+        None,
+        root=workdir / "judge" / profile_name,
+        device=device,
+    )
+    return model.eval()
+
+
+def models(cell: dict, profile_name: str) -> dict:
+    """What a cell's rows depend on: its model's arguments and budget, the judge's, the data."""
+    grid = TRUNK_GRID[profile_name]
+    judge = trained(JUDGE, fixed_budget(profile_name, grid["judge"]))
+    planner = (
+        {}
+        if cell["model"] in NAIVE
+        else trained(cell["model"], fixed_budget(profile_name, grid["train"]), seed=cell["seed"])
+    )
+    return dict(
+        planner=planner, judge=judge, loader=recordings.LOADER_REVISION, max_gap=MAX_GAP, windows=grid["windows"]
+    )
