@@ -49,7 +49,23 @@ def main(argv=None):
     try:
         args.run(args)
     except ValueError as error:
-        args.parser.error(str(error))
+        args.parser.error(in_flags(str(error)))
+
+
+# The package's messages name its Python keywords; on the command line they are these flags.
+FLAGS = {
+    "tip=[...]": "--tip COLS",
+    "inputs=[...]": "--inputs COLS",
+    "pass delay=": "pass --delay",
+    "pass other fractions (e.g. (1/3, 1/3) for three)": "pass --fractions (e.g. --fractions 0.34,0.34 for three)",
+}
+
+
+def in_flags(message: str) -> str:
+    """A package error as a command-line user reads it: Python keyword hints turned into flags."""
+    for keyword, flag in FLAGS.items():
+        message = message.replace(keyword, flag)
+    return message
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -89,22 +105,10 @@ def build_parser() -> argparse.ArgumentParser:
     recorded = sub.add_argument_group(
         "recorded runs", "train on a folder of recordings (docs/recordings.md) instead of a simulated rod"
     )
-    recorded.add_argument("--recordings", type=Path, metavar="DIR", help="the folder of recordings (.csv, .parquet)")
     recorded.add_argument(
-        "--inputs",
-        type=_columns,
-        metavar="COLS",
-        help="input columns, comma-separated (default: those named u...)",
+        "--recordings", type=Path, metavar="DIR", help="the folder of recordings (.csv, .csv.gz, .parquet)"
     )
-    recorded.add_argument(
-        "--tip",
-        type=_columns,
-        metavar="COLS",
-        help="tip columns in m, comma-separated (default: x_m, y_m, z_m)",
-    )
-    recorded.add_argument(
-        "--dt", type=_positive("seconds"), metavar="S", help="the period to resample to (default: the commands')"
-    )
+    _recording_options(recorded)
 
     sub = verb("sweep", _sweep, "run a study's cells as Dask tasks; the result CSV is the last line", sweep.__doc__)
     sub.add_argument("study", choices=sorted(sweep.STUDIES))
@@ -138,6 +142,15 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _model_options(sub)
     _shape_options(sub)
+    recorded = sub.add_argument_group(
+        "recorded runs",
+        "plan a desired path for a model of recorded runs: --reference, a CSV of time_s and the observed "
+        "columns (velocities are estimated as for training); the inputs come in the recordings' units, "
+        "advanced by their delay (row k is sent at period k)",
+    )
+    recorded.add_argument("--recordings", type=Path, metavar="DIR", help="the recordings the model was trained on")
+    recorded.add_argument("--reference", type=Path, metavar="PATH.csv", help="the desired path")
+    _recording_options(recorded)
 
     sub = verb(
         "evaluate",
@@ -176,8 +189,45 @@ def _model_options(sub, robot: str = SIM_ROBOT.name):
     _rod_options(sub, robot)
 
 
+def _recording_options(group):
+    """How recordings are read: the same options for training on them and planning with their model
+    (the model is found by the Dataset they make)."""
+    group.add_argument(
+        "--inputs", type=_columns, metavar="COLS", help="input columns, comma-separated (default: those named u...)"
+    )
+    group.add_argument(
+        "--tip",
+        type=_columns,
+        metavar="COLS",
+        help="observed columns in m, comma-separated: the tip alone (x3_m,y3_m,z3_m) or several points "
+        "(x1_m,...,z3_m) (default: x_m, y_m, z_m)",
+    )
+    group.add_argument(
+        "--dt", type=_positive("seconds"), metavar="S", help="the period to resample to (default: the commands')"
+    )
+    group.add_argument(
+        "--delay",
+        type=_non_negative("seconds"),
+        metavar="S",
+        help="the input-to-motion delay in seconds (default: estimated per recording; 0: the inputs act at once)",
+    )
+    group.add_argument(
+        "--fractions",
+        type=_fractions,
+        default=(0.8, 0.1),
+        metavar="TRAIN,VAL",
+        help="shares of the recordings for training and validation, the rest tested (default: 0.8,0.1; "
+        "split by recording: three recordings need e.g. 0.34,0.34)",
+    )
+    group.add_argument(
+        "--split-at-gaps",
+        action="store_true",
+        help="cut a recording at a gap of lost frames longer than 0.2 s instead of refusing it",
+    )
+
+
 def _shape_options(sub):
-    sub.add_argument("--shape", required=True, choices=sorted(data.SHAPES), help="the y-z shape to trace")
+    sub.add_argument("--shape", choices=sorted(data.SHAPES), help="the y-z shape to trace")
     sub.add_argument(
         "--size",
         type=_positive("metres"),
@@ -199,6 +249,32 @@ def _positive(unit: str):
         return value
 
     return parse
+
+
+def _non_negative(unit: str):
+    """The argument type of a number of ``unit`` >= 0."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = float("nan")
+        if not (math.isfinite(value) and value >= 0):
+            raise argparse.ArgumentTypeError(f"expected a number of {unit} >= 0; got {text!r}")
+        return value
+
+    return parse
+
+
+def _fractions(text: str) -> tuple[float, float]:
+    """TRAIN,VAL -> (train, validation) shares."""
+    try:
+        shares = tuple(float(value) for value in text.split(","))
+    except ValueError:
+        shares = ()
+    if len(shares) != 2:
+        raise argparse.ArgumentTypeError(f"expected two shares TRAIN,VAL such as 0.8,0.1; got {text!r}")
+    return shares
 
 
 def _columns(text: str) -> list[str]:
@@ -233,7 +309,8 @@ def _train(args):
         raise ValueError(f"--ship writes the paper profile's checkpoints; got --profile {args.profile}")
     profile = get_profile(args.profile)
     if args.recordings is None:
-        given = [f"--{option}" for option in ("inputs", "tip", "dt") if getattr(args, option) is not None]
+        given = [f"--{option}" for option in ("inputs", "tip", "dt", "delay") if getattr(args, option) is not None]
+        given += ["--split-at-gaps"] * args.split_at_gaps + ["--fractions"] * (args.fractions != (0.8, 0.1))
         if given:
             raise ValueError(f"{', '.join(given)} describe recordings; they need --recordings DIR")
         robot, gravity = ROBOTS[args.robot or SIM_ROBOT.name], args.gravity or "vertical"
@@ -247,11 +324,13 @@ def _train(args):
                 "their models are trained into data/checkpoints/, never shipped"
             )
         robot = gravity = None
-        dataset = recordings.load_dataset(args.recordings, inputs=args.inputs, tip=args.tip, dt=args.dt)
+        dataset = _recordings(args)
         found = dict(recordings=dataset)
         print(
             f"{dataset.key}: {len(dataset.u)} episodes of {dataset.u.shape[1]} steps of "
-            f"{dataset.dt:g} s, {dataset.dims.inputs} inputs, a {dataset.dims.position}-D tip"
+            f"{dataset.dt:g} s, {dataset.dims.inputs} inputs ({', '.join(dataset.input_columns)}), "
+            f"observed {', '.join(dataset.tip_columns)}; input-to-motion delay {dataset.delay_steps} periods "
+            f"({dataset.delay_steps * dataset.dt:g} s, {'given' if args.delay is not None else 'estimated'})"
         )
     paths = []
     for name in args.models:
@@ -276,6 +355,19 @@ def _train(args):
     if args.ship:
         write_text(model_cards.README, model_cards.model_cards())
     print("\n".join(map(str, paths)))
+
+
+def _recordings(args):
+    """The Dataset of ``--recordings`` read with the verb's column, period and delay options."""
+    return recordings.load_dataset(
+        args.recordings,
+        inputs=args.inputs,
+        tip=args.tip,
+        dt=args.dt,
+        delay=args.delay,
+        fractions=args.fractions,
+        split_at_gaps=args.split_at_gaps,
+    )
 
 
 def _sweep(args):
@@ -350,17 +442,48 @@ def _planned_shape(args):
     """(simulator, reference, plan (T, m)) of a shape verb."""
     if args.out.is_dir():
         raise ValueError(f"--out {args.out} is a directory; expected a file to write")
+    if args.shape is None:
+        recorded = " (or, for a model of recorded runs, --recordings DIR --reference PATH.csv)"
+        raise ValueError(f"--shape is needed{recorded if hasattr(args, 'reference') else ''}")
     controller, sim = _controller(args)
     reference = shape_about_rest_tip(sim, args.shape, args.size)
     return sim, reference, controller.plan(reference.states)
 
 
 def _plan(args):
+    if args.recordings is not None or args.reference is not None:
+        return _plan_recorded(args)
+    given = [f"--{option}" for option in ("inputs", "tip", "dt", "delay") if getattr(args, option) is not None]
+    if given:
+        raise ValueError(f"{', '.join(given)} describe recordings; they need --recordings DIR --reference PATH.csv")
     sim, reference, u = _planned_shape(args)
     frame = pd.DataFrame(u, columns=[f"u{i + 1}_N" for i in range(u.shape[1])])
     frame.insert(0, "time_s", np.arange(len(u)) * sim.dt)
     write_text(args.out, frame.to_csv(index=False, float_format="%.6f"))
     print(f"{args.model}: {len(u)} samples of {u.shape[1]} inputs for {reference.name} ({args.robot}, {args.gravity})")
+    print(args.out)
+
+
+def _plan_recorded(args):
+    """A desired path planned by the model of recorded runs: time_s and the recordings' inputs."""
+    if args.recordings is None or args.reference is None:
+        raise ValueError("a model of recorded runs plans --reference PATH.csv with --recordings DIR: give both")
+    if args.shape is not None or args.size is not None:
+        raise ValueError("--shape and --size plan the simulated rod's shapes; with --recordings give --reference")
+    if args.out.is_dir():
+        raise ValueError(f"--out {args.out} is a directory; expected a file to write")
+    dataset = _recordings(args)
+    controller = control.load_controller(args.model, args.profile, recordings=dataset)
+    states = recordings.read_path(args.reference, tip=list(dataset.tip_columns), dt=dataset.dt)  # (T+1, 2k)
+    u = controller.plan(states)  # (T, m), advanced by the delay
+    frame = pd.DataFrame(u, columns=list(dataset.input_columns))
+    frame.insert(0, "time_s", np.arange(len(u)) * dataset.dt)
+    write_text(args.out, frame.to_csv(index=False, float_format="%.6f"))
+    print(
+        f"{args.model}: {len(u)} samples of {u.shape[1]} inputs for {args.reference.name}, advanced by the "
+        f"delay of {controller.delay_steps} periods ({controller.delay_steps * dataset.dt:g} s): send row k at "
+        "period k, from the path's start state"
+    )
     print(args.out)
 
 

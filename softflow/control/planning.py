@@ -53,7 +53,10 @@ class Controller:
     takes its two states as the model sees them. ``workspace_margin``: references, and
     states given to ``step``, farther than this many training standard deviations are
     refused (``check_workspace``); None plans anything, for studies that measure
-    extrapolation on purpose."""
+    extrapolation on purpose. ``delay_steps``: the rig's input-to-motion delay in periods (a
+    model of recorded runs learnt the input sent that many periods before each step): ``plan``
+    returns inputs already advanced by it, so row k is sent at period k (``advance``).
+    ``tip_columns``: the observed columns a model of recorded runs reads, named in errors."""
 
     def __init__(
         self,
@@ -67,7 +70,11 @@ class Controller:
         u_range=None,
         observe=None,
         workspace_margin: float | None = WORKSPACE_MARGIN,
+        delay_steps: int = 0,
+        tip_columns: tuple[str, ...] = (),
     ):
+        if not (isinstance(delay_steps, int) and delay_steps >= 0):
+            raise ValueError(f"delay_steps must be a whole number of periods >= 0; got {delay_steps!r}")
         if not u_limit > 0:
             raise ValueError(f"u_limit must be a positive actuator range in N; got {u_limit!r}")
         if model.needs_statics and robot is None:
@@ -79,6 +86,7 @@ class Controller:
         norm, p = model.state_norm, model.dims.position
         self._mean, self._std = (b.numpy()[:p].astype(np.float64) for b in (norm.mean, norm.std))  # tip position
         self.u_limit, self.observe, self.workspace_margin = float(u_limit), observe, workspace_margin
+        self.delay_steps, self.tip_columns = delay_steps, tuple(tip_columns)
         self._low, self._high, self._range = -self.u_limit, self.u_limit, f"the actuator range +-{self.u_limit:g} N"
         if u_range is not None:
             low, high = (np.broadcast_to(np.asarray(b, np.float64), (model.dims.inputs,)) for b in u_range)
@@ -149,7 +157,7 @@ class Controller:
         if not (isinstance(n_samples, int) and n_samples >= 1):
             raise ValueError(f"n_samples must be a positive integer; got {n_samples!r}")
         if n_samples == 1:
-            u = self._plan(reference, noise, seed, options)
+            u = advance(self._plan(reference, noise, seed, options), self.delay_steps)
         elif noise == "zero":
             raise ValueError("n_samples > 1 averages random draws: use noise='seeded' or 'fresh'")
         else:
@@ -157,17 +165,31 @@ class Controller:
         return self._clip(u, "planned")
 
     def sample(self, reference, n: int, *, noise: str = "seeded", seed: int | None = None, **options) -> np.ndarray:
-        """``n`` plans from independent noise draws: (n, T, m) or (n, B, T, m), not clipped.
-        Their spread is the flow's own uncertainty about the actuation (a regression model
-        has none: ValueError)."""
+        """``n`` plans from independent noise draws: (n, T, m) or (n, B, T, m), not clipped,
+        advanced by the delay as ``plan``'s. Their spread is the flow's own uncertainty about the
+        actuation (a regression model has none: ValueError)."""
         if not (isinstance(n, int) and n >= 1):
             raise ValueError(f"n must be a positive integer; got {n!r}")
         check_choice(noise, "noise", NOISE[1:])
         if not self.generative:
             raise ValueError(f"{self.name} is a regression model: it has no noise to sample")
+        self._check_observed(reference)
         X, unbatched = as_real_array(reference, "reference", (None, None, self.model.dims.state), allow_unbatched=True)
         u = self._plan(np.tile(X, (n, 1, 1)), noise, seed, options).reshape(n, len(X), -1, self.model.dims.inputs)
+        u = advance(u, self.delay_steps)
         return u[:, 0] if unbatched else u
+
+    def _check_observed(self, reference):
+        """A reference of another number of observed coordinates than a model of recorded runs
+        reads is refused with the columns it needs, before its shape is (with a bare shape)."""
+        d, given = self.model.dims.state, np.shape(reference)
+        if self.tip_columns and len(given) >= 2 and given[-1] != d:
+            raise ValueError(
+                f"{self.name} was trained on the observed columns {', '.join(self.tip_columns)}: a reference "
+                f"needs {d} numbers per sample (their positions, then their velocities); got {given[-1]}. Give "
+                "every one of those columns, or plan with a model trained on the columns you have "
+                "(softflow train MODEL --recordings DIR --tip COLS; in Python recordings.load_dataset(..., tip=[...]))"
+            )
 
     def _check_options(self, noise, options):
         if not self.generative:
@@ -222,6 +244,7 @@ class Controller:
     def _plan(self, reference, noise, seed, options) -> np.ndarray:
         self._check_options(noise, options)
         dims = self.model.dims
+        self._check_observed(reference)
         X, unbatched = as_real_array(reference, "reference", (None, None, dims.state), allow_unbatched=True)
         B, T = X.shape[0], X.shape[1] - 1
         if B == 0:
@@ -245,6 +268,18 @@ class Controller:
         with torch.inference_mode(), one_thread():
             u = self.model.predict(windows, **extras, **options).numpy().astype(np.float64).reshape(B, T, dims.inputs)
         return u[0] if unbatched else u
+
+
+def advance(u: np.ndarray, steps: int) -> np.ndarray:
+    """A plan (..., T, m) for a rig that moves ``steps`` periods after an input is sent: row k is
+    the input the plan gave step k + steps, so sending row k at period k moves step k + steps as
+    planned. The first ``steps`` steps of the reference move under whatever was sent before the
+    plan began (hold the rig at the reference's start); the last ``steps`` rows repeat the last
+    planned input (the reference says nothing past its end)."""
+    if steps == 0:
+        return u
+    T = u.shape[-2]
+    return u[..., np.minimum(np.arange(T) + steps, T - 1), :]
 
 
 def find_trained(
@@ -331,7 +366,16 @@ def _controller(checkpoint: dict, path: Path, robot: Robot, gravity: str) -> Con
     model, name = model_from_checkpoint(checkpoint, path), checkpoint["name"]
     if "recorded" not in checkpoint:
         return Controller(model, name, robot=robot, gravity=gravity)
-    return Controller(model, name, robot=None, gravity=None, u_range=recorded_range(checkpoint["recorded"]))
+    recorded = checkpoint["recorded"]
+    return Controller(
+        model,
+        name,
+        robot=None,
+        gravity=None,
+        u_range=recorded_range(recorded),
+        delay_steps=int(recorded.get("delay_steps", 0)),
+        tip_columns=tuple(recorded.get("tip_columns", ())),
+    )
 
 
 def recorded_range(recorded: dict) -> tuple:

@@ -54,6 +54,8 @@ class Dataset:
     dt: float = DT
     delay_steps: int = 0  # periods between an input and the step it is paired with
     delays: tuple[float, ...] = ()  # s: the estimated delay of each recording (NaN: too short), if estimated
+    input_columns: tuple[str, ...] = ()  # recorded data: the columns the inputs and the tip came from
+    tip_columns: tuple[str, ...] = ()
 
     def __post_init__(self):
         if self.u.ndim != 3 or self.states.ndim != 3 or self.states.shape[:2] != (len(self.u), self.u.shape[1] + 1):

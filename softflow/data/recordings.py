@@ -547,6 +547,45 @@ def read(
     return _with_delay(_resample(table, table.command_period if dt is None else dt, max_gap, noise, jerk), delay)
 
 
+def read_path(path, *, tip, dt: float, noise: float = 1e-6, jerk: float | None = None) -> np.ndarray:
+    """A desired path for a model of recorded runs: a CSV or Parquet file of ``time_s`` and the
+    observed columns ``tip`` (in m, as in the recordings), as the states the model reads, (T+1, 2k):
+    the positions and their velocities on a grid of period ``dt`` (the recordings') from the first
+    time to the last, by the recordings' smoother (``noise``: the path's own, 1 um, so the smoother
+    follows it; ``jerk`` fitted). So a user gives positions only; velocities are made as for training."""
+    _check_options(dt, MAX_GAP, noise, jerk)
+    if dt is None:
+        raise ValueError("dt must be the recordings' period in s; got None")
+    path = Path(path)
+    try:
+        content = path.read_bytes()
+    except OSError as error:
+        raise ValueError(f"{path}: cannot read the path ({error})") from error
+    source = str(path)
+    frame = _frame(source, content)
+    frame.columns = [str(name) for name in frame.columns]
+    if TIME not in frame.columns:
+        raise ValueError(f"{source}: no time column {TIME!r} (the columns are {list(frame.columns)})")
+    tip_columns = _column_names(tip, (), "tip", source, frame.columns)
+    times = _numbers(frame, TIME, source)
+    p = np.stack([_numbers(frame, name, source) for name in tip_columns], -1)  # (R, k)
+    if not (np.isfinite(times).all() and np.isfinite(p).all()):
+        raise ValueError(f"{source}: a desired path needs every time and every {list(tip_columns)} cell set")
+    if len(times) < 2 or np.any(np.diff(times) <= 0):
+        raise ValueError(f"{source}: column {TIME!r}: need at least two rows at increasing times")
+    _check_time_unit(times, source)
+    _check_tip_unit(p, tip_columns, source)
+    n_steps = math.floor((times[-1] - times[0]) / dt + 1e-9)
+    if n_steps < 1:
+        raise ValueError(f"{source}: the path lasts {times[-1] - times[0]:g} s, less than one step of {dt:g} s")
+    grid = times[0] + dt * np.arange(n_steps + 1)  # (T+1,)
+    k = len(tip_columns)
+    states = np.empty((n_steps + 1, 2 * k))  # (T+1, 2k)
+    for i in range(k):
+        states[:, i], states[:, k + i], *_ = smooth(times, p[:, i], grid, noise=noise, jerk=jerk)
+    return states
+
+
 # ---------------------------------------------------------------------------- a folder of runs
 def recording_files(paths_or_folder) -> list[Path]:
     """The recordings a folder holds (its .csv, .csv.gz and .parquet files, by name) or the files listed."""
@@ -718,6 +757,8 @@ def load_dataset(
             dt=np.float64(period),
             delay_steps=np.int64(steps),
             delays=np.array([run.delay for run in runs] if delay is None else [], float),
+            input_columns=np.array(tables[0].input_columns),
+            tip_columns=np.array(tables[0].tip_columns),
         )
 
     if data_dir is None:
@@ -754,6 +795,8 @@ def _dataset(arrays: dict, key: str) -> Dataset | None:
             dt=float(arrays["dt"]),
             delay_steps=int(arrays["delay_steps"]),
             delays=tuple(float(seconds) for seconds in arrays["delays"]),
+            input_columns=tuple(str(name) for name in arrays["input_columns"]),
+            tip_columns=tuple(str(name) for name in arrays["tip_columns"]),
         )
     except (KeyError, TypeError, ValueError):
         return None

@@ -253,7 +253,12 @@ def _train(
     )
     if dataset.robot is None:  # no rod says what the inputs may be: the range they took, to clip plans to
         final["recorded"] = dict(
-            dt=float(dataset.dt), u_min=dataset.u.min((0, 1)).tolist(), u_max=dataset.u.max((0, 1)).tolist()
+            dt=float(dataset.dt),
+            u_min=dataset.u.min((0, 1)).tolist(),
+            u_max=dataset.u.max((0, 1)).tolist(),
+            delay_steps=int(dataset.delay_steps),  # plans come advanced by it
+            input_columns=list(dataset.input_columns),
+            tip_columns=list(dataset.tip_columns),
         )
     save_checkpoint(final, path)
     latest.unlink(missing_ok=True)
