@@ -78,7 +78,9 @@ CI_CELLS = {  # study: the fields that pick one of its cheapest ci cells (shippe
     "twin_burst": dict(mode="closed"),
     "two_segment": dict(model="rf"),
 }
-ELSEWHERE = {"recorded"}  # its whole ci study runs in tests/test_recorded_study.py, against the shipped rows
+# recorded: its whole ci study runs in tests/test_recorded_study.py, against the shipped rows;
+# trunk: its ci cells read and smooth every run (minutes), so tests/test_trunk.py checks its rows.
+ELSEWHERE = {"recorded", "trunk"}
 
 
 def test_every_study_ships_ci_rows_and_one_cell_is_tested():

@@ -18,11 +18,11 @@ Fixed before any row (docs/assumptions.md, "The trunk study"):
   0.5 s and 1 s starting every 5 s from the recorded state, and the tip it predicts is compared
   with the recorded tip (mm, RMS over the window); beside the models: the recorded inputs (the
   judge's floor), the training run's mean input, and persistence (the input sent one period
-  before); (c) the spread of u given (x_t, x_t+1) on the training run, tip alone and all disks, over
-  the estimator's floor; (d) for the flows, the spread of 16 draws against their error.
+  before: the judge's resolution); (c) the spread of u given (x_t, x_t+1) on the training run,
+  tip alone and all disks, over the estimator's floor; (d) for the flows, the spread of 16 draws against their error.
 - Rule: a ranking only where the bootstrap interval (over seeds and windows) and the paired
-  t-interval (over windows) of a difference both exclude zero; the judge ranks nothing unless it
-  tells the naive planners from the recorded inputs by that rule. Best flow (RF, RF-FWD) against
+  t-interval (over windows) of a difference both exclude zero; the judge ranks nothing on a family
+  unless it tells the training mean from the recorded inputs by that rule. Best flow (RF, RF-FWD) against
   best baseline (MLP, LSTM, Transformer) per observation, run and window: does the tip alone give
   the flows a win that all disks take away, as on the simulated two-segment rod (notebook 12)?
 """
@@ -32,6 +32,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import torch
 
 from softflow import data, training
@@ -39,7 +40,7 @@ from softflow.control.planning import Controller, recorded_range
 from softflow.data import recordings
 from softflow.profiles import FIXED_BUDGET, TrainConfig
 from softflow.store import REPO, cache_file, cached_arrays
-from softflow.studies import ambiguity
+from softflow.studies import ambiguity, stats
 from softflow.studies.study import fixed_budget, trained
 
 TRUNK = REPO / "datasets" / "asl_trunk"
@@ -55,6 +56,10 @@ WINDOW_EVERY = 5.0  # s between the starts of the judge's windows
 JUDGE = "forward"
 BASELINES, FLOWS = ("mlp", "lstm", "transformer"), ("rf", "rf-fwd")
 NAIVE = ("recorded", "training-mean", "persistence")  # planners that learn nothing: the judge's checks
+# The judge is trusted on a family where it tells the training mean from the recorded inputs.
+# Persistence is 0.05-0.5 degrees RMS from them per step (the inputs are smooth at 100 Hz): no
+# judge of motion should tell it apart, so it measures the judge's resolution and gates nothing.
+GATE = "training-mean"
 TRUNK_GRID = {
     "ci": dict(
         models=("mlp", "rf"),
@@ -317,3 +322,89 @@ def models(cell: dict, profile_name: str) -> dict:
     return dict(
         planner=planner, judge=judge, loader=recordings.LOADER_REVISION, max_gap=MAX_GAP, windows=grid["windows"]
     )
+
+
+# ---------------------------------------------------------------------------- the study's tables
+def _compare(rows: pd.DataFrame, model: str, other: str, family: str) -> dict:
+    """mean(model) - mean(other) of the judged tip error on a family: the bootstrap interval over
+    seeds and windows, the paired t-interval over windows, and the side both agree on (or 0)."""
+    interval = stats.difference(rows, model, other, family, "tip_mm")
+    t = stats.paired_t(rows, model, other, family, "tip_mm")
+    return dict(
+        difference_mm=interval.estimate,
+        low=interval.low,
+        high=interval.high,
+        t_low=t.low,
+        t_high=t.high,
+        side=stats.ranking(interval, t),
+    )
+
+
+def judged_table(rows: pd.DataFrame) -> pd.DataFrame:
+    """Mean judged tip error (mm) [bootstrap interval] per observation, planner and family."""
+    return stats.summarise(rows, "tip_mm", by=("observation", "model", "family"))
+
+
+def judge_check(rows: pd.DataFrame) -> pd.DataFrame:
+    """Per family: can the judge tell each naive planner from the recorded inputs (its floor)? Only
+    where it tells the GATE planner apart (higher by the rule) is anything ranked on the judge."""
+    naive = rows[rows.model.isin(NAIVE)]
+    out = []
+    for family in dict.fromkeys(naive.family):
+        compared = {name: _compare(naive, name, "recorded", family) for name in NAIVE[1:]}
+        out += [dict(family=family, planner=name, **c) for name, c in compared.items()]
+    table = pd.DataFrame(out)
+    if len(table):
+        table["tells_apart"] = table.side > 0
+    return table
+
+
+def flow_rule(rows: pd.DataFrame) -> pd.DataFrame:
+    """The study's question per observation and family: the best flow minus the best baseline
+    (best: lowest mean judged error, picked on these rows), ranked only where both intervals
+    exclude zero and the judge tells the training mean from its floor on that family."""
+    judged = judge_check(rows)
+    trusted = set(judged.family[(judged.planner == GATE) & judged.tells_apart]) if len(judged) else set()
+    out = []
+    for (observation, family), part in rows[~rows.model.isin(NAIVE)].groupby(["observation", "family"], sort=False):
+        means = part.groupby("model").tip_mm.mean()
+        flows, baselines = means.reindex(FLOWS).dropna(), means.reindex(BASELINES).dropna()
+        if flows.empty or baselines.empty:
+            continue
+        flow, baseline = flows.idxmin(), baselines.idxmin()
+        compared = _compare(part, flow, baseline, family)
+        side = compared.pop("side")
+        if family not in trusted:
+            verdict = f"no ranking (the judge does not tell the {GATE} input from the recorded inputs)"
+        elif side:
+            verdict = f"{flow if side < 0 else baseline} lower"
+        else:
+            verdict = "no ranking (an interval contains 0)"
+        out.append(
+            dict(
+                observation=observation,
+                family=family,
+                best_flow=flow,
+                best_baseline=baseline,
+                **compared,
+                verdict=verdict,
+            )
+        )
+    return pd.DataFrame(out)
+
+
+def per_step(rows: pd.DataFrame) -> pd.DataFrame:
+    """Per observation, planner and held-out run: the u error (degrees, RMS), for the flows the
+    draws' spread and its rank correlation with the error, mean over seeds (and their count)."""
+    columns = [c for c in ("u_rmse_deg", "u_rmse_draw", "draw_spread", "spread_error_spearman") if c in rows]
+    once = rows.drop_duplicates(["observation", "model", "seed", "run"])
+    table = once.groupby(["observation", "model", "run"], sort=False)[columns].mean()
+    table["seeds"] = once.groupby(["observation", "model", "run"], sort=False).seed.nunique()
+    return table
+
+
+def spread(rows: pd.DataFrame) -> pd.DataFrame:
+    """Per observation: the spread of u given (x_t, x_t+1) on the training run, over its floor."""
+    trained_rows = rows[~rows.model.isin(NAIVE)].drop_duplicates("observation")
+    table = trained_rows.set_index("observation")[["conditional_spread", "conditional_spread_floor"]]
+    return table.assign(**{"spread / floor": table.conditional_spread / table.conditional_spread_floor})

@@ -1,0 +1,91 @@
+"""The trunk study's parts that decide its verdicts: the naive planners, the judge's windows and
+the rule, on hand-made inputs whose answers are worked out by hand; and its shipped ci rows."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from softflow.studies import STUDIES, sweep, trunk
+
+
+def test_naive_planners():
+    u = np.arange(12.0).reshape(4, 3)
+    np.testing.assert_array_equal(trunk.naive_plan("recorded", u, None), u)
+    np.testing.assert_array_equal(trunk.naive_plan("persistence", u, None), u[[0, 0, 1, 2]])
+    np.testing.assert_array_equal(trunk.naive_plan("training-mean", u, np.ones(3)), np.ones((4, 3)))
+    with pytest.raises(ValueError, match="naive planner must be one of"):
+        trunk.naive_plan("oracle", u, None)
+
+
+class AddToTip:
+    """A judge whose tip (state 6:9, m) moves by the first three inputs (mm) each step."""
+
+    def predict_next(self, x, u):  # torch (W, 18), (W, 6)
+        x = x.clone()
+        x[:, 6:9] += 1e-3 * u[:, :3]
+        return x
+
+
+def test_the_judge_scores_each_window_from_its_recorded_start():
+    T, length = 1500, 50  # 15 s at 100 Hz: windows start at 0, 5 and 10 s
+    plan = np.zeros((T, 6))
+    plan[:, :3] = np.random.default_rng(0).normal(size=(T, 3))
+    states = np.zeros((T + 1, 18))
+    states[1:, 6:9] = 1e-3 * np.cumsum(plan[:, :3], 0)  # what the recorded inputs did
+    errors = trunk.judged_errors(AddToTip(), states, plan, length, delay=0)
+    np.testing.assert_allclose(errors, 0.0, atol=1e-4)  # the recorded inputs reach the recorded tip
+    offset = plan.copy()
+    offset[:, :3] += 0.5  # 0.5 mm more on each of three axes every step: k steps off by 0.5 k sqrt(3) mm
+    k = np.arange(1, length + 1)
+    expected = 0.5 * np.sqrt(3) * np.sqrt(np.mean(k**2))
+    np.testing.assert_allclose(trunk.judged_errors(AddToTip(), states, offset, length, 0), expected, rtol=1e-4)
+    assert len(errors) == 3
+
+
+def rows_of(model, observation, family, values, seeds=(0,)):
+    return [
+        dict(model=model, observation=observation, family=family, seed=s, reference=f"w{i}", tip_mm=v + 0.01 * s)
+        for s in seeds
+        for i, v in enumerate(values)
+    ]
+
+
+def made_rows(naive_gap: float) -> pd.DataFrame:
+    """Eight windows; the training mean ``naive_gap`` mm above the recorded inputs, persistence on
+    them; with the tip alone RF 1 mm below the MLP, with all disks the two within noise."""
+    noise = np.random.default_rng(1).normal(0, 0.3, 8)
+    base = 5 + noise
+    rows = rows_of("recorded", "disks", "f", base)
+    rows += rows_of("training-mean", "disks", "f", base + naive_gap + 0.1 * noise)
+    rows += rows_of("persistence", "disks", "f", base - 0.01 * noise)
+    rows += rows_of("mlp", "tip", "f", base + 3, seeds=(0, 1))
+    rows += rows_of("rf", "tip", "f", base + 2 + 0.05 * noise, seeds=(0, 1))
+    rows += rows_of("mlp", "disks", "f", base + 2, seeds=(0, 1))
+    rows += rows_of("rf", "disks", "f", base + 2 + np.random.default_rng(2).normal(0, 0.3, 8), seeds=(0, 1))
+    return pd.DataFrame(rows)
+
+
+def test_the_rule_ranks_where_both_intervals_agree_and_the_judge_tells_naive_from_recorded():
+    rule = trunk.flow_rule(made_rows(naive_gap=4.0)).set_index("observation")
+    assert rule.loc["tip", "verdict"] == "rf lower" and rule.loc["tip", "difference_mm"] == pytest.approx(-1, abs=0.05)
+    assert rule.loc["disks", "verdict"] == "no ranking (an interval contains 0)"
+    check = trunk.judge_check(made_rows(naive_gap=4.0)).set_index("planner")
+    assert check.tells_apart["training-mean"] and not check.tells_apart["persistence"]  # persistence gates nothing
+
+
+def test_a_judge_that_cannot_tell_the_training_mean_from_its_floor_ranks_nothing():
+    rule = trunk.flow_rule(made_rows(naive_gap=0.0)).set_index("observation")
+    assert rule.loc["tip", "verdict"].startswith("no ranking (the judge does not tell")
+    assert not trunk.judge_check(made_rows(naive_gap=0.0)).tells_apart.any()
+
+
+def test_the_shipped_ci_rows_are_the_grid_and_the_recorded_inputs_are_the_judges_floor():
+    rows = sweep.shipped_rows("trunk", "ci")
+    cells = STUDIES["trunk"].cells("ci")
+    assert rows.key.nunique() == len(cells)
+    recorded = rows[rows.model == "recorded"]
+    assert (recorded.u_rmse_deg == 0).all()
+    judged = trunk.judged_table(rows).set_index(["model", "family"])["mean"]
+    for family in dict.fromkeys(rows.family):
+        assert judged[("recorded", family)] <= judged[("training-mean", family)]
+    assert set(trunk.spread(rows).index) == {"tip", "disks"}
