@@ -324,6 +324,26 @@ def models(cell: dict, profile_name: str) -> dict:
     )
 
 
+def run_facts(names=(TRAINING_RUN, *HELD_OUT), delays_of=(TRAINING_RUN,)) -> pd.DataFrame:
+    """What each run is, read as the study reads it: rows, the lost frames per disk (held and
+    one-frame jumps, on the raw table), and for the runs ``delays_of`` the estimated delay in
+    periods from the tip alone and from all disks (those read and smooth the run: tens of seconds)."""
+    out = []
+    for name in names:
+        table = pd.read_csv(_file(name))
+        tip = table[list(DISKS)].to_numpy(float)  # (R, 9)
+        _, held, jumps = recordings.lost_frames(table.time_s.to_numpy(float), tip, DISKS)
+        row = dict(run=name, rows=len(table), seconds=float(table.time_s.iloc[-1]))
+        row.update({f"held_disk{d}": int(held[3 * (d - 1)]) for d in (1, 2, 3)})
+        row.update({f"jumps_disk{d}": int(jumps[3 * (d - 1)]) for d in (1, 2, 3)})
+        if name in delays_of:
+            for observation, columns in OBSERVATIONS.items():
+                run = recordings.read(_file(name), inputs=list(INPUTS), tip=list(columns), max_gap=MAX_GAP)
+                row[f"delay_{observation}"] = run.delay_steps
+        out.append(row)
+    return pd.DataFrame(out).set_index("run")
+
+
 # ---------------------------------------------------------------------------- the study's tables
 def _compare(rows: pd.DataFrame, model: str, other: str, family: str) -> dict:
     """mean(model) - mean(other) of the judged tip error on a family: the bootstrap interval over
