@@ -85,10 +85,12 @@ def main() -> int:
     rows, spreads, outputs = [], [], {}
     logs = REPO / "build" / "bench"
     logs.mkdir(parents=True, exist_ok=True)
+    tested = commit()  # every path tests this commit, whatever lands meanwhile
     with tempfile.TemporaryDirectory() as scratch:
         for name, forced in PATHS.items():
             clone = Path(scratch) / name
             subprocess.run(["git", "clone", "--quiet", str(REPO), str(clone)], check=True)
+            subprocess.run(["git", "-C", str(clone), "checkout", "--quiet", tested], check=True)
             venv_seconds, venv_code = timed(["make", "venv"], clone, logs / f"portability_{name}_venv.log")
             spread_log = Path(scratch) / f"{name}.jsonl"
             env = dict(forced, **{SPREAD_LOG: str(spread_log)})
@@ -108,7 +110,7 @@ def main() -> int:
                     machine=machine(),
                     cpu_flags=cpu_flags(),
                     date=datetime.now(UTC).strftime("%Y-%m-%d"),
-                    commit=commit(),
+                    commit=tested,
                 )
             )
             outputs[name] = Path(scratch) / f"{name}-ci"

@@ -1,5 +1,7 @@
 """The GVS simulator against closed-form and independent mechanics (issue: simulator checks 1-8)."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -178,3 +180,31 @@ def test_statics_reject_bad_input(call, arg):
 def test_simulator_rejects_bad_options(kwargs):
     with pytest.raises(ValueError):
         Simulator(SIM_ROBOT, **kwargs)
+
+
+def test_continuation_reaches_the_equilibrium_plain_newton_finds(monkeypatch):
+    """Where Newton from the start wanders, gravity raised in eight steps reaches the same q."""
+    sim = Simulator(HW_ROBOT, gravity="horizontal")
+    u = np.array([[0.5, -0.3]])
+    q_newton, _ = statics.equilibrium(sim, u)
+    real, scales = statics._newton, []
+
+    def wandering_once(sim, force, q, scale, tol, max_iter):
+        scales.append(scale)
+        return None if len(scales) == 1 else real(sim, force, q, scale, tol, max_iter)
+
+    monkeypatch.setattr(statics, "_newton", wandering_once)
+    q_continued, _ = statics.equilibrium(sim, u)
+    assert scales == [1.0, *(np.arange(1, 9) / 8)]
+    np.testing.assert_allclose(q_continued, q_newton, atol=1e-9)
+
+
+def test_a_rod_that_gravity_folds_is_solved_by_continuation():
+    """E x 0.1 of the horizontal hardware rod (calibrate_sag's softest bracket): plain Newton
+    wanders there on some CPUs; the equilibrium found balances stiffness and gravity."""
+    soft = dataclasses.replace(HW_ROBOT, youngs_modulus=0.1 * HW_ROBOT.youngs_modulus)
+    sim = Simulator(soft, gravity="horizontal")
+    q, _ = statics.equilibrium(sim, np.zeros((1, 2)))
+    residual = sim.stiffness @ q[0] - statics.gravity_force(sim, q)[0]
+    assert np.abs(residual).max() < 1e-9 * np.abs(sim.stiffness @ q[0]).max()
+    assert sim.kinematics.tip_positions(q)[0, 2] < -0.1  # it sags by more than a third of its length

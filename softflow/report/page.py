@@ -602,6 +602,45 @@ def recorded_section(profile: Profile) -> list[str]:
     ]
 
 
+def portability_section(profile: Profile) -> list[str]:
+    """Which numbers are the same on every CPU and which move, and by how much (make portability)."""
+    bench = profile.output_dir / "bench"
+    runs, spread = bench / "portability.csv", bench / "portability_spread.csv"
+    lines = [
+        "## Numbers across CPUs",
+        "",
+        "Exact on every CPU, because they are read, not computed: every table of the studies (notebooks 08-14 read "
+        "`figures/sweeps/*-paper.csv`, the design sweep of notebook 04 too), the shipped references and static "
+        "tables (`cache/`). Computed from the shipped weights by a rollout (Tables I-III, the stress tables of "
+        "notebook 05): the same weights give the same plans, and the rollout's arithmetic moves their last bits only. "
+        "What moves is what is trained or simulated on your machine (a fresh clone's ci datasets and ci models, "
+        "a model you train): a CPU's `exp`, vector width or BLAS changes the last bits of the data, and training "
+        "carries them on. `make portability` runs `make test` under forced kernel paths; the notebooks compare such "
+        'numbers within a tolerance set by that spread (docs/assumptions.md, "Numbers across CPUs").',
+        "",
+    ]
+    if runs.exists():
+        table = pd.read_csv(runs)[["path", "kernels", "passed", "test_minutes", "largest_printed_relative_difference"]]
+        lines += [
+            f"`make test` on fresh clones (`figures/bench/{runs.name}`):",
+            "",
+            markdown(table.set_index("path"), 4),
+            "",
+        ]
+    if spread.exists():
+        moved = pd.read_csv(spread)
+        if len(moved):
+            largest = moved.pivot_table(index="file", columns="path", values="largest_relative_difference")
+            lines += [
+                "The ci results trained under each forced path against the native ones, largest relative difference "
+                f"of any number per file (`figures/bench/{spread.name}`):",
+                "",
+                markdown(largest.sort_values(list(largest.columns), ascending=False), 6),
+                "",
+            ]
+    return lines
+
+
 def results_page(profile: Profile, tables: dict, run_dir: Path) -> str:
     """docs/results.md: machine, commit, wall times, Tables I-IV, the paper's claims, key figures."""
     times = recorded_wall_times(run_dir, profile.output_dir / "bench" / WALL_TIMES)
@@ -647,6 +686,7 @@ def results_page(profile: Profile, tables: dict, run_dir: Path) -> str:
     lines += consistency_weight_section(profile)
     lines += two_segment_section(profile)
     lines += recorded_section(profile)
+    lines += portability_section(profile)
     lines += ["## The paper's claims, reproduced or not", "", markdown(claims(profile)), ""]
     lines += design_choices(profile)
     lines += ["## Key figures", ""]

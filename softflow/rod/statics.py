@@ -30,6 +30,7 @@ NULL_RTOL = 1e-8  # converged when the null-space step is below this fraction of
 _CURVATURE_STEP = 1e-3  # N, forward difference of J along the null space (relative error ~1e-4)
 _HESSIAN_FLOOR = 0.1  # reduced Hessian eigenvalues floored here: a concave stretch still steps downhill in |u|
 _RANK_RTOL = 1e-9  # singular values of d p/d u below this fraction of the largest count as zero
+CONTINUATION_STEPS = (8, 32)  # gravity raised in this many equal steps where plain Newton wanders
 
 
 def gravity_force(sim, q):
@@ -48,20 +49,40 @@ def tangent_stiffness(sim, q, G):
 
 
 def equilibrium(sim, u, q=None, tol=1e-12, max_iter=50):
-    """Solve K q = B u + G(q) (S1) by Newton; returns q and the tangent stiffness there.
-    Raises RuntimeError when Newton does not converge."""
+    """Solve K q = B u + G(q) (S1) by Newton; returns q and the tangent stiffness there. Where
+    Newton from the start wanders (a rod so soft that gravity folds it: which CPU's last bits it
+    converges on is chance), gravity is raised from zero in steps instead, each Newton starting
+    at the equilibrium before (continuation). Raises RuntimeError when neither converges."""
     force = u @ sim.cable_map.T  # (B, nq)
     if q is None:
         q = np.linalg.solve(sim.stiffness, force.T).T
+    solved = _newton(sim, force, q, 1.0, tol, max_iter)
+    for steps in CONTINUATION_STEPS if solved is None and sim.gravity != "none" else ():
+        solved = np.linalg.solve(sim.stiffness, force.T).T, None
+        for scale in np.arange(1, steps + 1) / steps:
+            solved = _newton(sim, force, solved[0], float(scale), tol, max_iter)
+            if solved is None:
+                break
+        if solved is not None:
+            break
+    if solved is None:
+        raise RuntimeError(f"static equilibrium did not converge in {max_iter} Newton steps")
+    return solved
+
+
+def _newton(sim, force, q, scale: float, tol: float, max_iter: int):
+    """Newton on K q = B u + scale G(q) from q: (q, tangent stiffness), or None."""
     for _ in range(max_iter):
         G = gravity_force(sim, q)
-        residual = sim.stiffness @ q.T - (force + G).T
         Kt = tangent_stiffness(sim, q, G)
+        if scale != 1.0:  # K - scale dG/dq
+            G, Kt = scale * G, (1.0 - scale) * sim.stiffness + scale * Kt
+        residual = sim.stiffness @ q.T - (force + G).T
         dq = np.linalg.solve(Kt, residual.T[..., None])[..., 0]
         q = q - dq
         if np.max(np.abs(dq)) < tol * max(1.0, np.max(np.abs(q))):
             return q, Kt
-    raise RuntimeError(f"static equilibrium did not converge in {max_iter} Newton steps")
+    return None
 
 
 def arc_actuation(robot: Robot, p):
