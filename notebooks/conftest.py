@@ -11,8 +11,9 @@ committed one when
     |ran - committed| <= one unit of the committed number's last printed digit + RTOL * |committed|
 
 and every other character agrees (runs of white space count as one, so a wider number may shift a
-table's columns). RTOL is twice the largest relative spread measured across kernel paths
-(``make portability``, figures/bench/portability.csv); a result that moves by more still fails.
+table's columns). RTOL is about 8 times the largest relative spread of a trained ci result measured
+across kernel paths (5.9e-4: ``make portability``, figures/bench/portability_spread.csv), a margin
+for CPUs not measured; a result that moves by more still fails.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ import os
 import re
 
 TAG = "trained-here"
-RTOL = 2e-3  # twice the largest relative spread of a trained ci result across kernel paths
+RTOL = 5e-3  # about 8 times the largest relative spread of a trained ci result across kernel paths
 # A number standing alone: not part of a name such as Rand1, tau0.05 or u1.
 NUMBER = re.compile(r"(?<![\w.])[-+]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][-+]?\d+)?(?![\w.])")
 SPREAD_LOG = "SOFTFLOW_NBVAL_SPREAD"  # a file: each tagged cell's largest deviation, one JSON line
@@ -75,7 +76,7 @@ def _texts(output) -> list[tuple[tuple[str, ...], str]]:
 def within_tolerance(outputs, committed, sanitize=lambda text: text) -> tuple[list, float | None]:
     """``outputs`` with each text whose numbers agree with the committed one's replaced by the
     committed text (so nbval then finds them equal, and shows its usual diff where they do not),
-    and the largest relative difference seen (None where the texts did not line up)."""
+    and the largest share of the tolerance a number used (None where the texts did not line up)."""
     snapped, largest = copy.deepcopy(list(outputs)), 0.0
     if len(snapped) != len(committed):
         return snapped, None
@@ -89,7 +90,7 @@ def within_tolerance(outputs, committed, sanitize=lambda text: text) -> tuple[li
             found = deviation(sanitize(text), sanitize(theirs[where]))
             if found is None:
                 return snapped, None
-            largest = max(largest, found[1])
+            largest = max(largest, found[0])
             if found[0] <= 1.0:
                 target = output
                 for key in where[:-1]:
@@ -105,7 +106,7 @@ def _tolerant(item):
         snapped, largest = within_tolerance(test, ref, item.sanitize)
         if os.environ.get(SPREAD_LOG):
             with open(os.environ[SPREAD_LOG], "a") as log:
-                log.write(json.dumps(dict(cell=item.name, notebook=str(item.fspath), relative=largest)) + "\n")
+                log.write(json.dumps(dict(cell=item.name, notebook=str(item.fspath), used=largest)) + "\n")
         return compare(snapped, ref, skip_compare)
 
     return compare_outputs
