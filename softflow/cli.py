@@ -207,7 +207,7 @@ def _recording_options(group):
     )
     group.add_argument(
         "--delay",
-        type=_non_negative("seconds"),
+        type=_positive("seconds", zero=True),
         metavar="S",
         help="the input-to-motion delay in seconds (default: estimated per recording; 0: the inputs act at once)",
     )
@@ -236,31 +236,17 @@ def _shape_options(sub):
     sub.add_argument("--out", type=Path, required=True, metavar="FILE.csv", help="the CSV to write (replaced)")
 
 
-def _positive(unit: str):
-    """The argument type of a positive number of ``unit``."""
+def _positive(unit: str, *, zero: bool = False):
+    """The argument type of a positive number of ``unit`` (``zero``: or 0)."""
 
     def parse(text: str) -> float:
         try:
             value = float(text)
         except ValueError:
             value = float("nan")
-        if not (math.isfinite(value) and value > 0):
-            raise argparse.ArgumentTypeError(f"expected a positive number of {unit}; got {text!r}")
-        return value
-
-    return parse
-
-
-def _non_negative(unit: str):
-    """The argument type of a number of ``unit`` >= 0."""
-
-    def parse(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            value = float("nan")
-        if not (math.isfinite(value) and value >= 0):
-            raise argparse.ArgumentTypeError(f"expected a number of {unit} >= 0; got {text!r}")
+        if not (math.isfinite(value) and (value >= 0 if zero else value > 0)):
+            what = f"a number of {unit} >= 0" if zero else f"a positive number of {unit}"
+            raise argparse.ArgumentTypeError(f"expected {what}; got {text!r}")
         return value
 
     return parse
