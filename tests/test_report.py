@@ -510,6 +510,7 @@ def test_results_page_holds_every_table_and_section_and_only_existing_figures(pr
         "## RF-FWD's consistency weight (notebook 11)",
         "## A two-segment rod: four inputs, one tip (notebook 12)",
         "## Learning from recorded runs (notebook 13)",
+        "## Numbers across CPUs",
         "## The paper's claims, reproduced or not",
         "## Design choices",
         "## Key figures",
@@ -556,3 +557,30 @@ def test_a_pipe_inside_a_markdown_cell_is_escaped():
 
     text = markdown(pd.DataFrame({"best": ["rf | friction, 60 runs"], "mm": [-1.282]}, index=["vertical"]))
     assert text.splitlines()[-1] == "| vertical | rf \\| friction, 60 runs | -1.28 |"
+
+
+def test_portability_section_shows_each_path_and_the_largest_spread_per_file(profile):
+    assert "make portability" in "\n".join(report.page.portability_section(profile))  # no bench yet: the words only
+    bench = profile.output_dir / "bench"
+    bench.mkdir()
+    pd.DataFrame(
+        dict(
+            path=["native", "generic"],
+            kernels=["numpy X86_V4", "numpy baseline"],
+            passed=[True, False],
+            test_minutes=[7.0, 14.0],
+            largest_share_of_tolerance=[0.5, 0.9],
+        )
+    ).to_csv(bench / "portability.csv", index=False)
+    pd.DataFrame(
+        dict(
+            path=["generic", "generic", "avx2"],
+            file=["a.csv", "b.csv", "a.csv"],
+            largest_relative_difference=[1e-4, 5.9e-4, 3e-5],
+        )
+    ).to_csv(bench / "portability_spread.csv", index=False)
+    text = "\n".join(report.page.portability_section(profile))
+    assert "| native | numpy X86_V4 | True |" in text and "| generic | numpy baseline | False |" in text
+    spread = text.split("per file")[1]
+    assert spread.index("b.csv") < spread.index("a.csv")  # largest first
+    assert "0.00059" in spread
