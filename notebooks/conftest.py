@@ -67,10 +67,15 @@ def agree(ran: str, committed: str) -> bool:
 
 
 def _texts(output) -> list[tuple[tuple[str, ...], str]]:
-    """(where, text) of every text an output carries: a stream's text, each text MIME type."""
+    """(where, text) of every text an output carries: a stream's text, each text/* MIME type (not
+    an image's base64 payload, whose digits are no numbers: nbval skips PNG and JPEG)."""
     if "text" in output:
         return [(("text",), output["text"])]
-    return [(("data", kind), value) for kind, value in output.get("data", {}).items() if isinstance(value, str)]
+    return [
+        (("data", kind), value)
+        for kind, value in output.get("data", {}).items()
+        if kind.startswith("text/") and isinstance(value, str)
+    ]
 
 
 def within_tolerance(outputs, committed, sanitize=lambda text: text) -> tuple[list, float | None]:

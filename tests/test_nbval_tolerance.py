@@ -108,3 +108,13 @@ def test_a_result_row_moved_by_more_than_the_tolerance_fails_a_tagged_cell(tmp_p
     moved = perturbed("Rand4", "mlp", 1.01)  # 14.43 -> 14.58: 14.6 against the committed 14.4
     result = nbval(notebook_printing(moved, tmp_path, [tolerance.TAG]))
     assert result.returncode != 0 and "14.6" in result.stdout  # nbval's own diff, with both values
+
+
+def test_an_images_payload_is_not_read_for_numbers():
+    """A figure's base64 PNG differs in its digits from CPU to CPU (nbval skips it): the share of
+    the tolerance comes from its text alone."""
+    figure = dict(output_type="display_data", metadata={})
+    ran = [dict(figure, data={"image/png": "iVBOR 172 xyz", "text/plain": "<Figure size 640x480 with 1 Axes>"})]
+    committed = [dict(figure, data={"image/png": "iVBOR 171 xyz", "text/plain": "<Figure size 640x480 with 1 Axes>"})]
+    _, largest = tolerance.within_tolerance(ran, committed)
+    assert largest == 0.0
