@@ -1,7 +1,10 @@
 """Planning latency, side by side in one run (make bench):
 
 - the real-time step, ``Controller.step(x_t, x_next)`` at batch 1, for the MLP and every RF
-  variant, beside the model's eager torch ``predict`` of the same transition;
+  variant, beside the model's eager torch ``predict`` of the same transition and the step
+  exported as one ONNX graph (``control.export_onnx``) run by onnxruntime on one thread (each
+  called as a robot's loop calls it: the step with a state's float64 numbers, the session with
+  (1, d) float32 arrays; RF-Physical has no graph);
 - per control step of RF-FWD for N = 1..20 Euler steps: eager torch vs the lean numpy
   sampler (LeanFlow), median and p99 over 2000 calls each;
 - a whole 500-step trajectory planned in one batched call (Controller.plan).
@@ -14,9 +17,12 @@ from __future__ import annotations
 
 import argparse
 import sys
+import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
+import onnxruntime as ort
 import torch
 from results_file import write_results
 
@@ -25,6 +31,20 @@ from softflow.control import metrics
 from softflow.models.common import one_thread
 from softflow.models.flow import LeanFlow
 from softflow.profiles import get_profile
+
+
+def onnx_step(controller, window):
+    """A call of the controller's exported step on the transition ``window`` (1, 2, d), in an
+    onnxruntime session on one thread; None for a model with no graph (a static prior)."""
+    if controller.model.needs_statics:
+        return None
+    options = ort.SessionOptions()
+    options.intra_op_num_threads = 1
+    with tempfile.TemporaryDirectory() as folder:  # the session holds the graph once made
+        path = control.export_onnx(controller, Path(folder) / f"{controller.name}.onnx")
+        session = ort.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
+    feeds = {"x_t": window[:, 0].astype(np.float32), "x_next": window[:, 1].astype(np.float32)}  # (1, d) each
+    return lambda: session.run(None, feeds)
 
 
 def main():
@@ -53,9 +73,16 @@ def main():
         results["step"][name] = dict(
             eager_ms={k: 1e3 * v for k, v in eager.items()}, step_ms={k: 1e3 * v for k, v in step.items()}
         )
+        graph = onnx_step(controller, window)
+        if graph is not None:
+            results["step"][name]["onnx_ms"] = {
+                k: 1e3 * v for k, v in metrics.latency(graph, repeats=args.repeats).items()
+            }
+        onnx_ms = results["step"][name].get("onnx_ms")
         print(
             f"{name:12s} step: median {1e3 * step['median']:.3f} ms (p99 {1e3 * step['p99']:.3f}); "
-            f"eager torch median {1e3 * eager['median']:.3f} ms (p99 {1e3 * eager['p99']:.3f})"
+            f"eager torch median {1e3 * eager['median']:.3f} ms (p99 {1e3 * eager['p99']:.3f}); "
+            + (f"onnxruntime median {onnx_ms['median']:.3f} ms (p99 {onnx_ms['p99']:.3f})" if onnx_ms else "no graph")
         )
     model, _ = training.ensure_trained(args.model, profile, dataset)  # the shipped model, or trained with its budget
     lean = LeanFlow(model)

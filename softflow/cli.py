@@ -10,6 +10,7 @@
   softflow plan rf-fwd --shape circle --out u.csv      planned inputs for a shape, one row per sample
   softflow evaluate rf-fwd [--references random]       open-loop tracking RMSE in the simulator
   softflow export rf-fwd --shape star --out star.csv   motor commands for the hardware-twin rod
+  softflow export rf-fwd --onnx rf-fwd.onnx            its real-time step as one ONNX graph (onnxruntime)
 
 `softflow VERB --help` describes a verb. Trained models go to data/checkpoints/ (git-ignored);
 only train --ship writes checkpoints/.
@@ -169,10 +170,24 @@ def build_parser() -> argparse.ArgumentParser:
     sub = verb(
         "export",
         _export,
-        "motor commands for a planned shape: a CSV time_s,l1_mm,... (docs/real_robot.md), hardware rod by default",
+        "motor commands for a planned shape: a CSV time_s,l1_mm,... (docs/real_robot.md), hardware rod by default; "
+        "--onnx: the model's real-time step as one ONNX graph instead",
     )
     _model_options(sub, robot=HW_ROBOT.name)
-    _shape_options(sub)
+    _shape_options(sub, out_required=False)
+    sub.add_argument(
+        "--onnx",
+        type=Path,
+        metavar="FILE.onnx",
+        help="write Controller.step as one ONNX graph (inputs x_t, x_next; outputs u, outside) instead of commands",
+    )
+    recorded = sub.add_argument_group(
+        "recorded runs",
+        "with --onnx, the model of recorded runs (found as plan finds it): its delay, sample period and "
+        "observed columns go into the graph's metadata",
+    )
+    recorded.add_argument("--recordings", type=Path, metavar="DIR", help="the recordings the model was trained on")
+    _recording_options(recorded)
     return parser
 
 
@@ -226,14 +241,14 @@ def _recording_options(group):
     )
 
 
-def _shape_options(sub):
+def _shape_options(sub, out_required: bool = True):
     sub.add_argument("--shape", choices=sorted(data.SHAPES), help="the y-z shape to trace")
     sub.add_argument(
         "--size",
         type=_positive("metres"),
         help=f"half-extent in m, about the rest tip (default: {data.HARDWARE_SIZE:g} for hw, else {data.SIZE:g})",
     )
-    sub.add_argument("--out", type=Path, required=True, metavar="FILE.csv", help="the CSV to write (replaced)")
+    sub.add_argument("--out", type=Path, required=out_required, metavar="FILE.csv", help="the CSV to write (replaced)")
 
 
 def _positive(unit: str, *, zero: bool = False):
@@ -295,9 +310,7 @@ def _train(args):
         raise ValueError(f"--ship writes the paper profile's checkpoints; got --profile {args.profile}")
     profile = get_profile(args.profile)
     if args.recordings is None:
-        given = [f"--{option}" for option in ("inputs", "tip", "dt", "delay") if getattr(args, option) is not None]
-        given += ["--split-at-gaps"] * args.split_at_gaps + ["--fractions"] * (args.fractions != (0.8, 0.1))
-        if given:
+        if given := _recording_flags(args):
             raise ValueError(f"{', '.join(given)} describe recordings; they need --recordings DIR")
         robot, gravity = ROBOTS[args.robot or SIM_ROBOT.name], args.gravity or "vertical"
         dataset = data.DatasetOnDemand(profile, robot, gravity)  # simulated only if a model must be trained
@@ -341,6 +354,12 @@ def _train(args):
     if args.ship:
         write_text(model_cards.README, model_cards.model_cards())
     print("\n".join(map(str, paths)))
+
+
+def _recording_flags(args) -> list[str]:
+    """The options of ``_recording_options`` given on the command line."""
+    given = [f"--{option}" for option in ("inputs", "tip", "dt", "delay") if getattr(args, option) is not None]
+    return given + ["--split-at-gaps"] * args.split_at_gaps + ["--fractions"] * (args.fractions != (0.8, 0.1))
 
 
 def _recordings(args):
@@ -474,11 +493,42 @@ def _plan_recorded(args):
 
 
 def _export(args):
+    if args.onnx is not None:
+        return _export_onnx(args)
+    if given := ["--recordings"] * (args.recordings is not None) + _recording_flags(args):
+        raise ValueError(
+            f"{', '.join(given)}: a model of recorded runs has no cables to command; "
+            "export its step with --onnx FILE.onnx"
+        )
+    if args.out is None:
+        raise ValueError("--out FILE.csv is needed (or --onnx FILE.onnx for the model's step as one graph)")
     sim, reference, u = _planned_shape(args)
     commands = hardware.cable_commands(u[None], sim)[0]  # (T, C) m
     hardware.write_commands(args.out, commands, sim.dt)
     print(f"{args.model}: {len(commands)} commands for {commands.shape[1]} motors, {reference.name} ({args.robot})")
     print(args.out)
+
+
+def _export_onnx(args):
+    """The model's step as one ONNX graph: the verb's rod, or with --recordings the model of those runs."""
+    if given := [f"--{option}" for option in ("shape", "size", "out") if getattr(args, option) is not None]:
+        raise ValueError(f"{', '.join(given)}: options of a command file; --onnx writes the model's step alone")
+    if args.recordings is not None:
+        controller = control.load_controller(args.model, args.profile, recordings=_recordings(args))
+        made_for = f"recordings {args.recordings}"
+    elif given := _recording_flags(args):
+        raise ValueError(f"{', '.join(given)} describe recordings; they need --recordings DIR")
+    else:
+        controller = control.load_controller(args.model, args.profile, ROBOTS[args.robot], args.gravity)
+        made_for = f"{args.robot} rod, {args.gravity}"
+    path = control.export_onnx(controller, args.onnx)
+    dims, delay = controller.model.dims, controller.delay_steps
+    print(
+        f"{args.model} ({made_for}): Controller.step as one ONNX graph, x_t and x_next ({dims.state} numbers "
+        f"each) -> u ({dims.inputs} inputs) and outside"
+        + (f"; the rig moves {delay} periods after an input is sent (metadata delay_steps)" if delay else "")
+    )
+    print(path)
 
 
 def _evaluate(args):

@@ -1,5 +1,6 @@
-"""Control: open-loop planning (``Controller``), the metrics, the ILC floor, tip-state
-estimation and the closed loop. Imports models, data and the rod, never training.
+"""Control: open-loop planning (``Controller``), its real-time step as an ONNX graph
+(``export_onnx``), the metrics, the ILC floor, tip-state estimation and the closed loop. Imports
+models, data and the rod, never training.
 """
 
 from softflow.lazy import facade
@@ -18,6 +19,7 @@ EXPORTS = {
         "evaluate_many",
         "score",
     ],
+    "onnx_export": ["export_onnx"],
 }
 SUBMODULES = ["metrics", "floor", "estimation", "closed_loop"]
 __getattr__, __dir__, __all__ = facade(__name__, EXPORTS, SUBMODULES)

@@ -56,7 +56,9 @@ class Controller:
     extrapolation on purpose. ``delay_steps``: the rig's input-to-motion delay in periods (a
     model of recorded runs learnt the input sent that many periods before each step): ``plan``
     returns inputs already advanced by it, so row k is sent at period k (``advance``).
-    ``tip_columns``: the observed columns a model of recorded runs reads, named in errors."""
+    ``tip_columns``: the observed columns a model of recorded runs reads, named in errors.
+    ``dt``: the sample period (s) a step spans: by default the rod's, ``DT``, and unknown (None)
+    without a rod; a model of recorded runs gets its recordings'."""
 
     def __init__(
         self,
@@ -72,11 +74,14 @@ class Controller:
         workspace_margin: float | None = WORKSPACE_MARGIN,
         delay_steps: int = 0,
         tip_columns: tuple[str, ...] = (),
+        dt: float | None = None,
     ):
         if not (isinstance(delay_steps, int) and delay_steps >= 0):
             raise ValueError(f"delay_steps must be a whole number of periods >= 0; got {delay_steps!r}")
         if not u_limit > 0:
             raise ValueError(f"u_limit must be a positive actuator range in N; got {u_limit!r}")
+        if dt is not None and not dt > 0:
+            raise ValueError(f"dt must be a positive sample period in s or None; got {dt!r}")
         if model.needs_statics and robot is None:
             raise ValueError(
                 f"{name} learns a residual around the static prior of a simulated rod: it needs that rod "
@@ -87,6 +92,7 @@ class Controller:
         self._mean, self._std = (b.numpy()[:p].astype(np.float64) for b in (norm.mean, norm.std))  # tip position
         self.u_limit, self.observe, self.workspace_margin = float(u_limit), observe, workspace_margin
         self.delay_steps, self.tip_columns = delay_steps, tuple(tip_columns)
+        self.dt = dt if dt is not None else DT if robot is not None else None
         self._low, self._high, self._range = -self.u_limit, self.u_limit, f"the actuator range +-{self.u_limit:g} N"
         if u_range is not None:
             low, high = (np.broadcast_to(np.asarray(b, np.float64), (model.dims.inputs,)) for b in u_range)
@@ -219,6 +225,18 @@ class Controller:
         self._margin = margin
         if margin is not None:
             self._halfwidth = margin * self._std
+
+    @property
+    def workspace(self) -> tuple[np.ndarray, np.ndarray | None]:
+        """The training mean of the tip position and the half-widths about it beyond which a state
+        is refused, (p,) each (m); the half-widths are None when the margin is (nothing is refused)."""
+        return self._mean.copy(), None if self._margin is None else self._halfwidth.copy()
+
+    @property
+    def input_range(self) -> tuple[np.ndarray, np.ndarray]:
+        """(low, high), (m,) each: the box ``plan`` and ``step`` clip u to."""
+        m = self.model.dims.inputs
+        return tuple(np.broadcast_to(np.asarray(b, np.float64), (m,)).copy() for b in (self._low, self._high))
 
     def _outside(self, X) -> bool:
         """Whether a tip position of states X (..., d) lies beyond the workspace margin."""
@@ -375,6 +393,7 @@ def _controller(checkpoint: dict, path: Path, robot: Robot, gravity: str) -> Con
         u_range=recorded_range(recorded),
         delay_steps=int(recorded.get("delay_steps", 0)),
         tip_columns=tuple(recorded.get("tip_columns", ())),
+        dt=float(recorded["dt"]),
     )
 
 

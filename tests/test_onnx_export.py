@@ -1,0 +1,267 @@
+"""The step exported as one ONNX graph (``control.export_onnx``, ``softflow export MODEL --onnx``)
+against ``Controller.step``, the path it stands in for outside Python: the same u on 10,000
+in-workspace transitions of every shipped model that steps without a prior and of models of
+recorded runs, the same refusals at the workspace margin, the same clipping per input; what has
+no graph yet is refused by name."""
+
+import contextlib
+import functools
+import io
+import json
+import warnings
+from dataclasses import replace
+
+import numpy as np
+import onnx
+import onnxruntime as ort
+import pytest
+from test_recordings import TINY, point_mass_run
+
+from softflow import HW_ROBOT, SIM_ROBOT, TWO_SEGMENT_ROD, Simulator, cli, control, data, recordings
+from softflow.models import checkpoints
+from softflow.models.registry import build_model
+from softflow.profiles import PROFILES
+from softflow.studies import two_segment
+
+PAIRS = 10_000
+# N. Both paths compute in float32 from the same weights; they differ in the order of the matmul
+# sums and in the sigmoid: at most 3e-6 N measured on the shipped models' references.
+TOLERANCE = 1e-5
+# Every model that has a one-transition step and no static prior, on each rod it ships for.
+SHIPPED = [
+    ("mlp", SIM_ROBOT, "vertical"),
+    ("rf", SIM_ROBOT, "vertical"),
+    ("rf-fwd", SIM_ROBOT, "vertical"),
+    ("rf-fwd", HW_ROBOT, "vertical"),
+    ("rf-fwd", HW_ROBOT, "horizontal"),
+    ("mlp", TWO_SEGMENT_ROD, "vertical"),
+    ("rf", TWO_SEGMENT_ROD, "vertical"),
+    ("rf-fwd", TWO_SEGMENT_ROD, "vertical"),
+]
+DELAY = 3  # periods of 10 ms: the delay the recorded models are trained with
+TEXT = {"model", "robot", "gravity", "softflow_version"}  # metadata stored as text, not JSON
+
+
+def session(path) -> ort.InferenceSession:
+    """The graph on one CPU thread, as a robot's controller runs it."""
+    options = ort.SessionOptions()
+    options.intra_op_num_threads = 1
+    return ort.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
+
+
+def run_graph(path, x_t, x_next):
+    """(u (B, m), outside (B,)) of the graph at ``path``."""
+    return session(path).run(None, {"x_t": x_t, "x_next": x_next})
+
+
+def metadata(path) -> dict:
+    """The graph's metadata, its JSON values decoded (text values are stored as they are)."""
+    stored = session(path).get_modelmeta().custom_metadata_map
+    return {key: value if key in TEXT else json.loads(value) for key, value in stored.items()}
+
+
+def stepped(controller, x_t, x_next):
+    """``Controller.step``, saturation not warned about (clipping is compared)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", control.SaturationWarning)
+        return controller.step(x_t, x_next)
+
+
+def refuses(controller, x_t, x_next) -> bool:
+    try:
+        stepped(controller, x_t, x_next)
+    except ValueError:
+        return True
+    return False
+
+
+def rod_references(robot, gravity) -> list[np.ndarray]:
+    """The states (T+1, d) of each of the rod's own references: Table I's on the paper's rod, Table
+    III's shapes on the hardware twin, the two-segment study's shapes (all cached in the repository)."""
+    sim = Simulator(robot, gravity)
+    if robot == HW_ROBOT:
+        made = data.hardware_references(sim)
+    elif robot == TWO_SEGMENT_ROD:
+        made = two_segment.references(sim, "paper", names=list(two_segment.TWO_SEGMENT["paper"]["shapes"]))
+    else:
+        made = data.evaluation_references(sim)
+    return [r.states for r in made]
+
+
+def transitions(trajectories, controller, n: int = PAIRS, seed: int = 0):
+    """n pairs (x_t, x_next), (n, d) float32 each, inside the workspace: the trajectories'
+    consecutive states, tiled to n, each copy after the first shifted by a small random offset
+    (0.1 mm, 1 mm/s; the same for both states of a pair, so that its increment is kept)."""
+    x_t = np.concatenate([X[:-1] for X in trajectories])  # (P, d)
+    x_next = np.concatenate([X[1:] for X in trajectories])
+    index, p = np.arange(n) % len(x_t), x_t.shape[1] // 2
+    shift = np.random.default_rng(seed).normal(size=(n, 2 * p)) * np.repeat([1e-4, 1e-3], p)
+    shift[: len(x_t)] = 0
+    x_t, x_next = (np.asarray(x[index] + shift, np.float32) for x in (x_t, x_next))
+    for x, name in ((x_t, "x_t"), (x_next, "x_next")):
+        controller.check_workspace(x, name)
+    return x_t, x_next
+
+
+@pytest.mark.parametrize("name, robot, gravity", SHIPPED, ids=[f"{n}-{r.name}-{g}" for n, r, g in SHIPPED])
+def test_the_graph_steps_as_the_controller_on_its_rods_references(name, robot, gravity, tmp_path):
+    controller = control.load_controller(name, robot=robot, gravity=gravity)
+    x_t, x_next = transitions(rod_references(robot, gravity), controller)
+    u, outside = run_graph(control.export_onnx(controller, tmp_path / f"{name}.onnx"), x_t, x_next)
+    assert u.shape == (PAIRS, controller.model.dims.inputs) and u.dtype == np.float32
+    np.testing.assert_allclose(u, stepped(controller, x_t, x_next), rtol=0, atol=TOLERANCE)
+    assert outside.dtype == bool and not outside.any()
+
+
+def test_the_graph_is_the_steps_arithmetic_with_its_metadata(tmp_path):
+    controller = control.load_controller("rf-fwd")
+    path = control.export_onnx(controller, tmp_path / "new" / "rf-fwd.onnx")  # its folder is made
+    graph = onnx.load(path).graph
+    assert {node.op_type for node in graph.node} <= {
+        *("Sub", "Div", "Concat", "MatMul", "Add", "Mul", "Sigmoid", "Max", "Min"),  # the step
+        *("Cast", "Abs", "Less", "Gather", "LessOrEqual", "Not", "ReduceMax"),  # the workspace
+    }
+    ran = session(path)
+    assert [(v.name, v.shape) for v in ran.get_inputs()] == [("x_t", ["batch", 6]), ("x_next", ["batch", 6])]
+    assert [(v.name, v.shape) for v in ran.get_outputs()] == [("u", ["batch", 2]), ("outside", ["batch"])]
+    meta, (mean, halfwidth) = metadata(path), controller.workspace
+    assert (
+        meta["model"] == "rf-fwd"
+        and meta["robot"] == "sim"
+        and meta["gravity"] == "vertical"
+        and meta["euler_steps"] == controller.model.steps
+    )
+    assert (meta["state_size"], meta["input_size"], meta["workspace_margin"]) == (6, 2, control.WORKSPACE_MARGIN)
+    np.testing.assert_array_equal(meta["workspace_mean"], mean)
+    np.testing.assert_array_equal(meta["workspace_halfwidth"], halfwidth)
+    assert (meta["input_low"], meta["input_high"], meta["sample_period_s"]) == ([-4.0, -4.0], [4.0, 4.0], 0.01)
+    assert (meta["delay_steps"], meta["tip_columns"]) == (0, [])
+    x_t, x_next = transitions(rod_references(SIM_ROBOT, "vertical"), controller, n=1)  # batch 1
+    np.testing.assert_allclose(
+        ran.run(["u"], {"x_t": x_t, "x_next": x_next})[0], controller.step(x_t, x_next), atol=TOLERANCE
+    )
+
+
+def test_the_graph_clips_each_input_to_its_range_as_the_step(tmp_path):
+    shipped = control.load_controller("rf")
+    controller = control.Controller(shipped.model, "rf", u_range=([-1.0, -0.25], [0.5, 2.0]))
+    x_t, x_next = transitions(rod_references(SIM_ROBOT, "vertical"), controller)
+    u, _ = run_graph(control.export_onnx(controller, tmp_path / "rf.onnx"), x_t, x_next)
+    np.testing.assert_allclose(u, stepped(controller, x_t, x_next), rtol=0, atol=TOLERANCE)
+    raw = controller.step(x_t, x_next, clip=False)
+    for bound, saturated in zip(
+        controller.input_range, (raw < controller.input_range[0], raw > controller.input_range[1])
+    ):
+        assert saturated.mean(0).min() > 0.01  # every bound of every input is reached
+        np.testing.assert_allclose(u[saturated], np.broadcast_to(bound, u.shape)[saturated], rtol=0, atol=TOLERANCE)
+
+
+def test_outside_flags_the_pairs_the_step_refuses(tmp_path):
+    """Pairs built to straddle the margin: one tip coordinate of x_t or x_next of each pair set
+    just inside, on or just beyond it (1e-6 of the half-width is a few float32 steps); some hold
+    a value that is not finite (a lost marker), which the step refuses too."""
+    controller = control.load_controller("mlp")
+    n = 2000
+    x_t, x_next = transitions(rod_references(SIM_ROBOT, "vertical"), controller, n=n)
+    mean, halfwidth = controller.workspace
+    rng = np.random.default_rng(1)
+    axis, side = rng.integers(0, len(mean), n), rng.choice([-1.0, 1.0], n)
+    factor = rng.choice([0.999, 1 - 1e-6, 1.0, 1 + 1e-6, 1.001], n)
+    value = mean[axis] + side * factor * halfwidth[axis]
+    in_next = rng.random(n) < 0.5
+    x_t[~in_next, axis[~in_next]] = value[~in_next]
+    x_next[in_next, axis[in_next]] = value[in_next]
+    x_t[::97, 4], x_next[50::101, 1] = np.nan, np.inf
+    refused = np.array([refuses(controller, a, b) for a, b in zip(x_t, x_next)])
+    _, outside = run_graph(control.export_onnx(controller, tmp_path / "mlp.onnx"), x_t, x_next)
+    assert 0.3 < refused.mean() < 0.7
+    np.testing.assert_array_equal(outside, refused)
+
+
+def test_with_no_margin_only_states_that_are_not_finite_are_outside(tmp_path):
+    controller = control.load_controller("mlp")
+    controller.workspace_margin = None
+    x_t, x_next = transitions(rod_references(SIM_ROBOT, "vertical"), controller, n=4)
+    x_t[:, 1] += 1.0  # a metre off: far outside any margin
+    x_next[3, 0] = np.nan
+    path = control.export_onnx(controller, tmp_path / "mlp.onnx")
+    np.testing.assert_array_equal(run_graph(path, x_t, x_next)[1], [False, False, False, True])
+    meta = metadata(path)
+    assert (meta["workspace_margin"], meta["workspace_halfwidth"]) == (None, None)
+
+
+@pytest.mark.parametrize(
+    "name, message",
+    [
+        ("lstm", "lstm reads a window of 10 past transitions: it has no one-transition step to export"),
+        ("transformer", "it has no one-transition step to export; plan it in Python"),
+        ("rf-physical", "the graph has no form of that inverse yet; Controller.step remains the path for it"),
+        ("mlp-physical", "static prior found by iteratively inverting a table of the rod's statics"),
+    ],
+)
+def test_what_has_no_graph_yet_is_refused(name, message, tmp_path):
+    controller = (
+        control.Controller(build_model(name), name) if name == "mlp-physical" else control.load_controller(name)
+    )
+    with pytest.raises(ValueError, match=message):
+        control.export_onnx(controller, tmp_path / "model.onnx")
+    assert not list(tmp_path.iterdir())
+
+
+def test_bad_arguments_are_refused(tmp_path):
+    with pytest.raises(ValueError, match="expected a Controller"):
+        control.export_onnx(control.load_controller("mlp").model, tmp_path / "mlp.onnx")
+    with pytest.raises(ValueError, match="is a directory; expected a file to write"):
+        control.export_onnx(control.load_controller("mlp"), tmp_path)
+
+
+def test_the_cli_writes_the_hardware_rods_graph_by_default(tmp_path, capsys):
+    out = tmp_path / "rf-fwd.onnx"
+    cli.main(["export", "rf-fwd", "--onnx", str(out)])
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert lines[-1] == str(out) and lines[0].startswith("rf-fwd (hw rod, vertical): Controller.step as one ONNX")
+    meta = metadata(out)
+    assert (meta["model"], meta["robot"], meta["gravity"]) == ("rf-fwd", "hw", "vertical")
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory):
+    """Twelve recordings of a 3-input, 2-D-tip point mass; an MLP and an RF trained on them by the
+    CLI with a delay of DELAY periods given (ci profile shrunk to TINY; nothing in data/). Returns
+    (folder, Dataset, where the checkpoints are)."""
+    runs, rng = tmp_path_factory.mktemp("runs"), np.random.default_rng(3)
+    for i in range(12):
+        point_mass_run(runs / f"run{i:02d}.csv", rng, 3, 2, 3.0)
+    trained_in = tmp_path_factory.mktemp("checkpoints")
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setitem(PROFILES, "ci", replace(PROFILES["ci"], train=TINY))
+        patch.setattr(checkpoints, "TRAINED", trained_in)
+        patch.setattr(recordings, "load_dataset", functools.partial(recordings.load_dataset, data_dir=None))
+        with contextlib.redirect_stdout(io.StringIO()):
+            cli.main(["train", "mlp", "rf", "--recordings", str(runs), "--profile", "ci", "--delay", f"{DELAY / 100}"])
+        dataset = recordings.load_dataset(runs, delay=DELAY / 100)
+    return runs, dataset, trained_in
+
+
+@pytest.mark.parametrize("model", ["mlp", "rf"])
+def test_a_model_of_recorded_runs_exports_with_its_delay(recorded, model, tmp_path, capsys, monkeypatch):
+    runs, dataset, trained_in = recorded
+    monkeypatch.setitem(PROFILES, "ci", replace(PROFILES["ci"], train=TINY))
+    monkeypatch.setattr(checkpoints, "TRAINED", trained_in)
+    monkeypatch.setattr(recordings, "load_dataset", functools.partial(recordings.load_dataset, data_dir=None))
+    out = tmp_path / f"{model}.onnx"
+    cli.main(
+        ["export", model, "--profile", "ci", "--recordings", str(runs), "--delay", f"{DELAY / 100}", "--onnx", str(out)]
+    )
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert lines[-1] == str(out) and f"moves {DELAY} periods after an input is sent" in lines[0]
+    meta = metadata(out)
+    controller = control.load_controller(model, "ci", recordings=dataset)
+    low, high = controller.input_range
+    assert (meta["delay_steps"], meta["tip_columns"], meta["sample_period_s"]) == (DELAY, ["x_m", "y_m"], dataset.dt)
+    assert (meta["robot"], meta["state_size"], meta["input_size"]) == ("null", 4, 3)
+    assert (meta["input_low"], meta["input_high"]) == (low.tolist(), high.tolist())
+    x_t, x_next = transitions(dataset.states, controller)
+    u, outside = run_graph(out, x_t, x_next)
+    np.testing.assert_allclose(u, stepped(controller, x_t, x_next), rtol=0, atol=TOLERANCE)
+    assert not outside.any()
