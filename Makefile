@@ -13,7 +13,7 @@ PROFILE ?= paper
 BENCH_PROFILE ?= ci
 NOTEBOOKS := $(sort $(wildcard notebooks/[0-9]*.ipynb))
 
-.PHONY: venv test lint reproduce study bench bench-setup portability lab clean lock strip
+.PHONY: venv test lint reproduce readme study bench bench-setup portability lab clean lock strip
 
 venv: $(STAMP)
 
@@ -85,10 +85,15 @@ reproduce: $(STAMP)
 		echo "== $$nb ($(PROFILE))"; \
 		$(VENV)/bin/papermill --cwd notebooks -p profile $(PROFILE) "$$nb" "build/notebooks/$(PROFILE)/$$(basename $$nb)" || exit 1; \
 	done
+	$(if $(filter paper,$(PROFILE)),$(PY) -m softflow.report.readme)
+
+# The README's result block, from the shipped study rows (softflow/report/templates/result.md.j2).
+readme: $(STAMP)
+	$(PY) -m softflow.report.readme
 
 # Every cell of the studies, recomputed (not read from figures/sweeps/) and cached in
 # data/sweeps/, so an interrupted run resumes; SCHEDULER_FILE=s.json runs them on your cluster.
-STUDIES := table1 protocol data_size ambiguity fwd_lambda design closed_loop twin_burst recorded two_segment
+STUDIES := table1 protocol data_size ambiguity fwd_lambda design closed_loop twin_burst recorded two_segment trunk
 study: $(STAMP)
 	for s in $(STUDIES); do \
 		$(PY) -m softflow sweep $$s --profile $(PROFILE) --recompute $(if $(SCHEDULER_FILE),--scheduler-file $(SCHEDULER_FILE)) || exit 1; \

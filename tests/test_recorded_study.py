@@ -296,7 +296,7 @@ def test_the_recording_rule_compares_the_better_of_each_side():
     assert set(table.best_simulator) == {"rf-fwd | friction, simulator, open-calibrated"}
     assert list(table.best_recorded) == ["mlp | friction, 12 runs", "rf | friction, 60 runs"]
     np.testing.assert_allclose(table.difference_mm, [0.05, -1.95])  # the recorded seeds' mean is +0.05
-    assert list(table.verdict) == ["no ranking", "recordings beat the simulator"]
+    assert list(table.verdict) == ["no ranking", "recordings lower"]
 
 
 def test_the_model_rule_ranks_on_the_most_runs_and_sees_friction_change_the_winner():
@@ -304,7 +304,7 @@ def test_the_model_rule_ranks_on_the_most_runs_and_sees_friction_change_the_winn
     assert list(table.index) == [("vertical", "friction"), ("vertical", "typical")]
     assert list(table.best_baseline) == ["mlp", "mlp"] and list(table.best_rf) == ["rf", "rf"]
     np.testing.assert_allclose(table.difference_mm, [-2.0, 2.0])
-    assert list(table.verdict) == ["RF lower", "RF higher"] and table.friction_changes.all()
+    assert list(table.verdict) == ["RF lower", "MLP lower"] and set(table.friction_changes) == {"yes"}
 
 
 def test_the_results_paragraph_says_each_verdict_whichever_way_and_on_how_many_cells():
@@ -312,10 +312,15 @@ def test_the_results_paragraph_says_each_verdict_whichever_way_and_on_how_many_c
         study_tables.recording_rule(rule_rows()), study_tables.recorded_model_rule(model_rule_rows()), 7, 78
     )
     assert "vertical, 12 runs: +0.05 mm [" in paragraph and "(no ranking)" in paragraph
-    assert "vertical, 60 runs: -1.95 mm [" in paragraph and "(recordings beat the simulator)" in paragraph
+    assert "vertical, 60 runs: -1.95 mm [" in paragraph and "(recordings lower)" in paragraph
     assert "vertical under the friction gap -2.00 mm [" in paragraph and "(RF against MLP: RF lower)" in paragraph
     assert "friction changes which model is best (vertical)." in paragraph
     assert paragraph.endswith("(7 of the study's 78 cells have rows.)")
+    friction = model_rule_rows().query("gap == 'friction'")
+    mlp = friction[(friction.model == "mlp") & (friction.runs == 60)].assign(gap="typical")
+    tie = pd.concat([friction, mlp, mlp.assign(model="rf")])  # without friction RF and MLP tie: no ranking
+    unanswered = page.recorded_summary(pd.DataFrame(), study_tables.recorded_model_rule(tie), 7, 78)
+    assert "whether friction changes the best model is unanswered (a gap without a ranking) (vertical)." in unanswered
     nothing = page.recorded_summary(pd.DataFrame(), pd.DataFrame(), 0, 78)
     assert "no comparison has rows of both its sides yet (0 of the study's 78 cells" in nothing
 

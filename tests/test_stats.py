@@ -117,3 +117,41 @@ def test_a_ranking_needs_every_interval_on_one_side_of_zero():
     assert stats.ranking(below, stats.Interval(-1, np.nan, np.nan)) == 0  # no t-interval: no ranking
     with pytest.raises(ValueError, match="at least one"):
         stats.ranking()
+
+
+def test_paired_t_p_value_by_hand():
+    """Differences 1, 2, 3: t = 2 / (1 / sqrt 3) = sqrt 12 on 2 dof, whose two-sided p-value is
+    1 - t / sqrt(t^2 + 2) = 1 - sqrt(6 / 7) (the t distribution with 2 dof in closed form)."""
+    assert stats.paired_t(t_rows(), "a", "b", "random").p == pytest.approx(1 - np.sqrt(6 / 7))
+    assert np.isnan(stats.paired_t(t_rows()[t_rows().reference == "R1"], "a", "b").p)  # one reference: no test
+
+
+def test_holm_by_hand():
+    """Sorted 0.01, 0.03, 0.04 of three tests: x3, x2, x1 = 0.03, 0.06, 0.04, then non-decreasing."""
+    np.testing.assert_allclose(stats.holm([0.01, 0.04, 0.03, np.nan]), [0.03, 0.06, 0.06, np.nan])
+    np.testing.assert_allclose(stats.holm([0.5, 0.9]), [1.0, 1.0])  # capped at 1
+    with pytest.raises(ValueError, match="probabilities"):
+        stats.holm([0.2, 5.0])
+
+
+def test_verdict_words_and_what_holm_removes():
+    assert stats.verdict(-1, "RF", "MLP") == "RF lower" and stats.verdict(1, "RF", "MLP") == "MLP lower"
+    assert stats.verdict(0, "RF", "MLP", holm_p=0.001) == "no ranking"
+    assert stats.verdict(-1, "RF", "MLP", holm_p=0.049) == "RF lower"
+    assert stats.verdict(-1, "RF", "MLP", holm_p=0.06) == "RF lower (not after Holm)"
+    with pytest.raises(ValueError, match="side"):
+        stats.verdict(2, "RF", "MLP")
+
+
+def test_a_family_of_verdicts_is_adjusted_together():
+    """Two comparisons, each ranked by both intervals at 95 %, with t-test p-values 0.03 and
+    0.04: alone each holds; as one family Holm makes them 0.06 and 0.06, so both say so."""
+    table = pd.DataFrame(
+        dict(low=[-2.0, -2.0], high=[-1.0, -1.0], t_low=[-2.0, -2.0], t_high=[-0.1, -0.1], t_p=[0.03, 0.04]),
+        index=["shape", "random"],
+    )
+    verdicts = stats.family_verdicts(table, lambda index, row: ("RF", "MLP"))
+    np.testing.assert_allclose(verdicts.holm_p, [0.06, 0.06])
+    assert list(verdicts.verdict) == ["RF lower (not after Holm)"] * 2
+    alone = stats.family_verdicts(table.iloc[:1], lambda index, row: ("RF", "MLP"))
+    assert list(alone.verdict) == ["RF lower"]

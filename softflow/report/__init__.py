@@ -61,7 +61,6 @@ EXPORTS = {
         "lambda_decision",
         "floor_progress",
         "VERDICTS",
-        "row_intervals",
         "verdict_counts",
         "gap_sensitivity",
     ],

@@ -22,7 +22,6 @@ from softflow.report.study_tables import (
     recording_rule,
     regime_map,
     regime_rows,
-    row_intervals,
     size_effects,
     table_order,
     two_segment_differences,
@@ -89,7 +88,7 @@ def claims(profile: Profile) -> pd.DataFrame:
     change = " / ".join(
         _change_text(
             100 * (summary.loc[(f, d.best_rf)] / summary.loc[(f, d.best_baseline)] - 1),
-            stats.ranking(*row_intervals(d)),
+            stats.ranking(*stats.row_intervals(d)),
         )
         for f, d in differences.iterrows()
     )
@@ -286,7 +285,7 @@ def regime_summary(regimes: pd.DataFrame) -> str:
         differences = {"flow": [], "MLP": [], "none": []}
         for _, row in rows.iterrows():
             for family in ("shape", "random"):
-                side = {0: "none", -1: "flow", 1: "MLP"}[stats.ranking(*row_intervals(row, f"{family}_"))]
+                side = {0: "none", -1: "flow", 1: "MLP"}[stats.ranking(*stats.row_intervals(row, f"{family}_"))]
                 differences[side].append((family, abs(row[f"{family}_mm"])))
         parts = [
             f"the {side} lower in {len(d)} ({_families_text(d)}, by {_range_text([v for _, v in d])} mm)"
@@ -575,10 +574,18 @@ def recorded_summary(needed: pd.DataFrame, best: pd.DataFrame, computed: int, ce
             f"{row.verdict})"
             for (gravity, gap), row in best.iterrows()
         ]
-        changed = sorted({gravity for (gravity, _), row in best.iterrows() if row.friction_changes})
+        answers = {
+            answer: sorted({gravity for (gravity, _), row in best.iterrows() if row.friction_changes == answer})
+            for answer in ("yes", "no", "unanswered")
+        }
+        words = {
+            "yes": "friction changes which model is best",
+            "no": "friction leaves the same model best",
+            "unanswered": "whether friction changes the best model is unanswered (a gap without a ranking)",
+        }
+        said = [f"{words[answer]} ({', '.join(where)})" for answer, where in answers.items() if where]
         sentences.append(
-            f"Best RF variant minus best baseline on the most recording: {'; '.join(gaps)}; friction "
-            + (f"changes which model is best ({', '.join(changed)})." if changed else "changes no ranking.")
+            f"Best RF variant minus best baseline on the most recording: {'; '.join(gaps)}; {'; '.join(said)}."
         )
     return " ".join(sentences) + f" ({done}.)"
 

@@ -2,7 +2,9 @@
 
 A difference gets two intervals, the two-way bootstrap over seeds and references and the paired
 t-interval over references on seed means (``compare``); a verdict in words needs both to
-exclude zero (``stats.ranking``)."""
+exclude zero (``stats.ranking``). Each verdict table is one family of comparisons: every one
+also carries its Holm-adjusted p-value over the table, and a ranking Holm removes says so
+(``stats.family_verdicts``)."""
 
 from __future__ import annotations
 
@@ -78,18 +80,35 @@ def _interval_columns(interval, t, prefix: str = "", estimate: str = "difference
         f"{prefix}high": interval.high,
         f"{prefix}t_low": t.low,
         f"{prefix}t_high": t.high,
+        f"{prefix}t_p": t.p,
     }
 
 
-BEST_AGAINST_BEST = ("family", "best_rf", "best_baseline", "difference_mm", "low", "high", "t_low", "t_high", "verdict")
+BEST_AGAINST_BEST = (
+    "family",
+    "best_rf",
+    "best_baseline",
+    "difference_mm",
+    "low",
+    "high",
+    "t_low",
+    "t_high",
+    "t_p",
+    "holm_p",
+    "verdict",
+)
+
+
+def _best_names(index, row) -> tuple[str, str]:
+    return LABELS.get(row.best_rf, row.best_rf), LABELS.get(row.best_baseline, row.best_baseline)
 
 
 def best_against_best(rows: pd.DataFrame, value: str = "rmse_mm", families=("shape", "random")) -> pd.DataFrame:
     """Per family: the best RF variant minus the best baseline (best: lowest mean), with its
     bootstrap (low, high) and paired t-interval (t_low, t_high); a ranking is stated only where
-    both exclude 0. A family without an RF variant or a baseline in the rows (a grid, or a
-    sweep not finished, that lacks one) is left out. (Picking the best of each group from the
-    same rows biases the difference towards 0.)"""
+    both exclude 0, and the families together are one Holm family. A family without an RF
+    variant or a baseline in the rows (a grid, or a sweep not finished, that lacks one) is left
+    out. (Picking the best of each group from the same rows biases the difference towards 0.)"""
     out = []
     for family in families:
         means = with_ci(rows, value, family)["mean"]
@@ -98,18 +117,9 @@ def best_against_best(rows: pd.DataFrame, value: str = "rmse_mm", families=("sha
             continue
         rf, baseline = rfs.idxmin(), baselines.idxmin()
         interval, t = compare(rows, rf, baseline, family, value)
-        side = stats.ranking(interval, t)
-        verdict = f"{LABELS[rf]} {'lower' if side < 0 else 'higher'}" if side else "no ranking (an interval contains 0)"
-        out.append(
-            dict(
-                family=family,
-                best_rf=rf,
-                best_baseline=baseline,
-                **_interval_columns(interval, t),
-                verdict=verdict,
-            )
-        )
-    return pd.DataFrame(out, columns=BEST_AGAINST_BEST).set_index("family")
+        out.append(dict(family=family, best_rf=rf, best_baseline=baseline, **_interval_columns(interval, t)))
+    table = pd.DataFrame(out, columns=BEST_AGAINST_BEST).set_index("family")
+    return stats.family_verdicts(table, _best_names)
 
 
 def protocol_table(rows: pd.DataFrame, family: str = "shape") -> pd.DataFrame:
@@ -184,9 +194,9 @@ def regime_rows(ambiguity_rows: pd.DataFrame, two_segment_rows: pd.DataFrame) ->
 def regime_map(rows: pd.DataFrame) -> pd.DataFrame:
     """Per ambiguity variant: the conditional spread of u (and the estimator's floor) and each
     flow minus the MLP, z = 0 plans: tracking RMSE (mm) per family, paired over references
-    (bootstrap and t-interval), and the per-step u error (N), over seeds; a verdict only where
-    both intervals exclude 0 (so none per step: one number per model leaves no references to
-    pair over)."""
+    (bootstrap and t-interval; every tracking comparison of the map is one Holm family), and the
+    per-step u error (N), over seeds; a verdict only where both intervals exclude 0 (so none per
+    step: one number per model leaves no references to pair over)."""
     out = []
     plans = rows[rows["plan"] == "zero"]
     for variant, part in plans.groupby("variant", sort=False):
@@ -200,12 +210,7 @@ def regime_map(rows: pd.DataFrame) -> pd.DataFrame:
             )
             for family in ("shape", "random"):
                 interval, t = compare(part, flow, "mlp", family)
-                row.update(
-                    {
-                        **_interval_columns(interval, t, f"{family}_", f"{family}_mm"),
-                        f"{family}_verdict": _verdict((interval, t), flow),
-                    }
-                )
+                row.update(_interval_columns(interval, t, f"{family}_", f"{family}_mm"))
             # one number per trained model: the interval is over seeds alone, so it needs several
             steps = part.drop_duplicates(subset=["model", "seed"]).assign(reference="per step", family="step")
             interval, t = compare(steps, flow, "mlp", "step", "u_rmse_test")
@@ -214,10 +219,13 @@ def regime_map(rows: pd.DataFrame) -> pd.DataFrame:
                 step_N=interval.estimate,
                 step_low=interval.low if several else np.nan,
                 step_high=interval.high if several else np.nan,
-                step_verdict=_verdict((interval, t), flow) if several else "one seed: no interval",
+                step_verdict=stats.verdict(stats.ranking(interval, t), LABELS[flow], "MLP")
+                if several
+                else "one seed: no interval",
             )
             out.append(row)
-    return pd.DataFrame(out).set_index(["variant", "flow"])
+    table = pd.DataFrame(out).set_index(["variant", "flow"])
+    return stats.family_verdicts(table, lambda index, row: (LABELS[index[1]], "MLP"), ("shape_", "random_"))
 
 
 # What data_size separates (fixed with the study): effect -> (model, the model it is compared with).
@@ -233,7 +241,7 @@ def size_effects(rows: pd.DataFrame) -> pd.DataFrame:
     """Per training-set size and reference family: the physics prior's effect (each model with
     the prior minus the same model without) and being generative's (each flow minus the
     regression with the same prior), tracking RMSE in mm paired over references (bootstrap and
-    t-interval); the effects whose models the grid lacks are left out."""
+    t-interval; one Holm family); the effects whose models the grid lacks are left out."""
     out = []
     for episodes, part in rows.groupby("episodes"):
         for effect, (model, other) in SIZE_EFFECTS.items():
@@ -241,16 +249,11 @@ def size_effects(rows: pd.DataFrame) -> pd.DataFrame:
                 continue  # a grid without one of them (the ci profile's)
             for family in ("shape", "random"):
                 interval, t = compare(part, model, other, family)
-                out.append(
-                    dict(
-                        episodes=episodes,
-                        effect=effect,
-                        family=family,
-                        **_interval_columns(interval, t),
-                        verdict=_verdict((interval, t), model, other),
-                    )
-                )
-    return pd.DataFrame(out).set_index(["episodes", "effect", "family"])
+                out.append(dict(episodes=episodes, effect=effect, family=family, **_interval_columns(interval, t)))
+    if not out:
+        return pd.DataFrame(columns=["episodes", "effect", "family"]).set_index(["episodes", "effect", "family"])
+    table = pd.DataFrame(out).set_index(["episodes", "effect", "family"])
+    return stats.family_verdicts(table, lambda index, row: tuple(LABELS[m] for m in SIZE_EFFECTS[index[1]]))
 
 
 def lambda_decision(rows: pd.DataFrame, default: float = 1.0) -> tuple[pd.DataFrame, float]:
@@ -331,7 +334,8 @@ def two_segment_table(rows: pd.DataFrame) -> pd.DataFrame:
 def two_segment_differences(rows: pd.DataFrame) -> pd.DataFrame:
     """The study's decision rule per observation and family: best RF variant minus best baseline
     in tracking RMSE of the z = 0 plans (``best_against_best``), a verdict only where both
-    intervals exclude zero; an observation or family without both groups is left out."""
+    intervals exclude zero, Holm over every observation and family; an observation or family
+    without both groups is left out."""
     zero, parts = _zero_plans(rows), {}
     for observation, part in zero.groupby("observation") if len(zero) else ():
         table = best_against_best(part, families=_families(part))
@@ -340,9 +344,10 @@ def two_segment_differences(rows: pd.DataFrame) -> pd.DataFrame:
     if not parts:
         empty = pd.DataFrame(columns=["observation", *BEST_AGAINST_BEST])
         return empty.set_index(["observation", "family"])
-    return pd.concat(parts, names=["observation", "family"]).sort_index(
+    table = pd.concat(parts, names=["observation", "family"]).sort_index(
         level="observation", key=lambda level: level.map(_RANKS["observation"]), sort_remaining=False
     )
+    return stats.family_verdicts(table, _best_names)
 
 
 def two_segment_per_step(rows: pd.DataFrame) -> pd.DataFrame:
@@ -389,15 +394,6 @@ VERDICTS = {
 }
 
 
-def row_intervals(row: pd.Series, prefix: str = "") -> tuple[stats.Interval, stats.Interval]:
-    """One comparison of a verdict table's row: its bootstrap interval (<prefix>low, high) and
-    t-interval (<prefix>t_low, t_high; NaN where the row has none), for ``stats.ranking``."""
-    return tuple(
-        stats.Interval(np.nan, row.get(f"{prefix}{kind}low", np.nan), row.get(f"{prefix}{kind}high", np.nan))
-        for kind in ("", "t_")
-    )
-
-
 def verdict_counts(tables: dict) -> pd.DataFrame:
     """How many comparisons each study's verdict table holds (``tables``: study -> the table of
     best_against_best, regime_map, size_effects or lambda_decision), how many the bootstrap
@@ -411,19 +407,11 @@ def verdict_counts(tables: dict) -> pd.DataFrame:
         counts = np.zeros(3, int)
         for prefix in prefixes:
             for _, row in tables[study].iterrows():
-                bootstrap, t = row_intervals(row, prefix)
+                bootstrap, t = stats.row_intervals(row, prefix)
                 counts += [1, stats.ranking(bootstrap) != 0, stats.ranking(bootstrap, t) != 0]
         out[label] = dict(zip(("comparisons", "bootstrap alone", "bootstrap and t"), counts))
     table = pd.DataFrame.from_dict(out, orient="index").rename_axis("verdicts")
     return pd.concat([table, table.sum().rename("all").to_frame().T.rename_axis("verdicts")])
-
-
-def _verdict(intervals, model: str, other: str = "mlp") -> str:
-    """Which of two models is lower, in words, where every interval of their difference agrees."""
-    side = stats.ranking(*intervals)
-    if not side:
-        return "no ranking"
-    return f"{LABELS[model]} lower" if side < 0 else f"{LABELS[other]} lower"
 
 
 # ---------------------------------------------------------------------------- the recorded study (notebook 13)
@@ -498,6 +486,8 @@ RECORDING_RULE = (
     "high",
     "t_low",
     "t_high",
+    "t_p",
+    "holm_p",
     "verdict",
 )
 
@@ -506,8 +496,9 @@ def recording_rule(rows: pd.DataFrame, family: str = "shape", value: str = "rmse
     """The recorded study's "how much recording" rule, per configuration and recording size under
     friction: the better of MLP and RF trained on that many runs minus the better of the
     simulator-trained RF-FWD open and open-calibrated (open loop against open loop), with its
-    bootstrap and paired t-intervals; "beats" or "worse" only where both exclude 0. A size or a
-    configuration without both sides in the rows is left out."""
+    bootstrap and paired t-intervals; "recordings lower" or "simulator lower" only where both
+    exclude 0 (one Holm family over sizes and configurations). A size or a configuration
+    without both sides in the rows is left out."""
     part = rows[(rows["gap"] == "friction") & (rows["family"] == family)] if len(rows) else rows
     out = []
     if len(part):
@@ -522,8 +513,6 @@ def recording_rule(rows: pd.DataFrame, family: str = "shape", value: str = "rmse
         for runs, sized in recorded.groupby("runs"):
             best = means[sized["model"].unique()].idxmin()
             interval, t = compare(config, best, best_simulator, family, value)
-            side = stats.ranking(interval, t)
-            verdict = {-1: "recordings beat the simulator", 1: "recordings worse"}.get(side, "no ranking")
             out.append(
                 dict(
                     gravity=gravity,
@@ -531,17 +520,19 @@ def recording_rule(rows: pd.DataFrame, family: str = "shape", value: str = "rmse
                     best_recorded=best,
                     best_simulator=best_simulator,
                     **_interval_columns(interval, t),
-                    verdict=verdict,
                 )
             )
-    return pd.DataFrame(out, columns=RECORDING_RULE).set_index(["gravity", "runs"])
+    table = pd.DataFrame(out, columns=RECORDING_RULE).set_index(["gravity", "runs"])
+    return stats.family_verdicts(table, lambda index, row: ("recordings", "simulator"))
 
 
 def recorded_model_rule(rows: pd.DataFrame, family: str = "shape", value: str = "rmse_mm") -> pd.DataFrame:
     """The recorded study's "which model is best" rule, per configuration and gap among the models
     of recordings on the most runs: the best RF variant minus the best baseline (under friction,
-    all five models; under the typical gap, RF minus MLP), as ``best_against_best``. Column
-    ``friction_changes``: True where the two gaps' verdicts are rankings of opposite sign."""
+    all five models; under the typical gap, RF minus MLP), as ``best_against_best``, Holm over the
+    whole table. Column ``friction_changes``: "yes" where the two gaps' verdicts are rankings of
+    opposite sign, "no" where they are the same ranking, "unanswered" where either gap ranks
+    nothing (so a missing ranking is never read as "friction changes nothing")."""
     learned = rows[rows["trained_on"] == "recordings"] if len(rows) else rows
     out = {}
     for (gravity, gap), part in learned.groupby(["gravity", "gap"], sort=False) if len(learned) else ():
@@ -552,9 +543,10 @@ def recorded_model_rule(rows: pd.DataFrame, family: str = "shape", value: str = 
     table = pd.DataFrame(list(out.values()), index=pd.MultiIndex.from_tuples(list(out), names=["gravity", "gap"]))
     if table.empty:
         return pd.DataFrame(columns=[*BEST_AGAINST_BEST, "friction_changes"])
-    sides = {key: stats.ranking(*row_intervals(row)) for key, row in table.iterrows()}
-    changes = {
-        gravity: sides.get((gravity, "friction"), 0) * sides.get((gravity, "typical"), 0) < 0
-        for gravity in table.index.get_level_values("gravity")
-    }
+    table = stats.family_verdicts(table, _best_names)
+    sides = {key: stats.ranking(*stats.row_intervals(row)) for key, row in table.iterrows()}
+    changes = {}
+    for gravity in table.index.get_level_values("gravity"):
+        both = sides.get((gravity, "friction"), 0) * sides.get((gravity, "typical"), 0)
+        changes[gravity] = "yes" if both < 0 else "no" if both > 0 else "unanswered"
     return table.assign(friction_changes=[changes[gravity] for gravity, _ in table.index])

@@ -10,7 +10,10 @@ are paired over references (both are scored on the same ones) and unpaired over 
 The paired t-interval is a second, stricter check on a difference: it averages each model's
 seeds per reference and treats the references alone as the sample, so a difference that rests
 on a few references far from the rest stays unranked even where the bootstrap, which also sees
-the seeds, calls it. A ranking is stated in words only where both exclude zero (``ranking``).
+the seeds, calls it. A ranking is stated in words only where both exclude zero (``ranking``),
+and ``verdict`` is the one place that says it. A study makes many comparisons at 95 % each: its
+verdict table is one family, and a ranking whose Holm-adjusted t-test p-value (``holm``) is not
+below 5 % is marked as one the family-wise view removes.
 """
 
 from __future__ import annotations
@@ -30,6 +33,7 @@ class Interval:
     estimate: float  # the mean over every seed and reference
     low: float
     high: float
+    p: float = np.nan  # a t-interval's two-sided p-value of "no difference" (NaN for the bootstrap)
 
     @property
     def excludes_zero(self) -> bool:
@@ -136,8 +140,10 @@ def paired_t(
     estimate, n = float(differences.mean()), len(differences)
     if n < 2:
         return Interval(estimate, np.nan, np.nan)
-    half = distributions.t.ppf((1 + level) / 2, n - 1) * differences.std(ddof=1) / np.sqrt(n)
-    return Interval(estimate, float(estimate - half), float(estimate + half))
+    error = differences.std(ddof=1) / np.sqrt(n)
+    half = distributions.t.ppf((1 + level) / 2, n - 1) * error
+    p = 2 * distributions.t.sf(abs(estimate) / error, n - 1) if error > 0 else float(estimate == 0)
+    return Interval(estimate, float(estimate - half), float(estimate + half), float(p))
 
 
 def ranking(*intervals: Interval) -> int:
@@ -150,3 +156,57 @@ def ranking(*intervals: Interval) -> int:
     if all(i.low > 0 for i in intervals):
         return 1
     return 0
+
+
+def holm(p_values) -> np.ndarray:
+    """Holm's step-down adjustment of a family's p-values (same order; NaN, a comparison without a
+    t-test, stays NaN and is not counted in the family): the k-th smallest of m is multiplied by
+    m - k + 1, then made non-decreasing, and capped at 1."""
+    p = np.asarray(p_values, float)
+    if p.ndim != 1 or np.any((p < 0) | (p > 1)):
+        raise ValueError(f"p_values must be a 1-D array of probabilities (NaN allowed); got {p_values!r}")
+    tested = np.flatnonzero(np.isfinite(p))
+    order = tested[np.argsort(p[tested], kind="stable")]
+    scaled = p[order] * (len(order) - np.arange(len(order)))
+    adjusted = np.full(p.shape, np.nan)
+    adjusted[order] = np.minimum(np.maximum.accumulate(scaled), 1.0)
+    return adjusted
+
+
+def verdict(side: int, lower: str, higher: str, holm_p: float | None = None, level: float = LEVEL) -> str:
+    """A comparison in words, the only place they are made: "<lower> lower" where ``side`` (from
+    ``ranking``) is -1, "<higher> lower" where it is +1, else "no ranking"; a ranking whose
+    family's Holm-adjusted p-value (``holm``; None: not judged as a family) is not below
+    1 - ``level`` says that Holm removes it."""
+    if side not in (-1, 0, 1):
+        raise ValueError(f"side must be -1, 0 or 1 (stats.ranking); got {side!r}")
+    if not side:
+        return "no ranking"
+    words = f"{lower if side < 0 else higher} lower"
+    return words if holm_p is None or holm_p < 1 - level else f"{words} (not after Holm)"
+
+
+def row_intervals(row: pd.Series, prefix: str = "") -> tuple[Interval, Interval]:
+    """One comparison of a verdict table's row: its bootstrap interval (<prefix>low, high) and
+    t-interval (<prefix>t_low, t_high; NaN where the row has none), for ``ranking``."""
+    return tuple(
+        Interval(np.nan, row.get(f"{prefix}{kind}low", np.nan), row.get(f"{prefix}{kind}high", np.nan))
+        for kind in ("", "t_")
+    )
+
+
+def family_verdicts(table: pd.DataFrame, names, prefixes=("",)) -> pd.DataFrame:
+    """``table`` (one study's verdict table, whose comparisons form one family) with each
+    comparison's Holm-adjusted t-test p-value over the whole table (<prefix>holm_p) and its
+    verdict in words (<prefix>verdict, ``verdict``); ``names(index, row)`` gives the names
+    of the two sides, (the first of the difference, the second)."""
+    keys = [(index, prefix) for index in table.index for prefix in prefixes]
+    adjusted = dict(zip(keys, holm([table.at[index, f"{prefix}t_p"] for index, prefix in keys])))
+    out = table.copy()
+    for prefix in prefixes:
+        out[f"{prefix}holm_p"] = [adjusted[(index, prefix)] for index in table.index]
+        out[f"{prefix}verdict"] = [
+            verdict(ranking(*row_intervals(row, prefix)), *names(index, row), row[f"{prefix}holm_p"])
+            for index, row in out.iterrows()
+        ]
+    return out

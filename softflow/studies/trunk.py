@@ -347,7 +347,8 @@ def run_facts(names=(TRAINING_RUN, *HELD_OUT), delays_of=(TRAINING_RUN,)) -> pd.
 # ---------------------------------------------------------------------------- the study's tables
 def _compare(rows: pd.DataFrame, model: str, other: str, family: str) -> dict:
     """mean(model) - mean(other) of the judged tip error on a family: the bootstrap interval over
-    seeds and windows, the paired t-interval over windows, and the side both agree on (or 0)."""
+    seeds and windows, the paired t-interval over windows (and its p-value), and the side both
+    agree on (or 0)."""
     interval = stats.difference(rows, model, other, family, "tip_mm")
     t = stats.paired_t(rows, model, other, family, "tip_mm")
     return dict(
@@ -356,6 +357,7 @@ def _compare(rows: pd.DataFrame, model: str, other: str, family: str) -> dict:
         high=interval.high,
         t_low=t.low,
         t_high=t.high,
+        t_p=t.p,
         side=stats.ranking(interval, t),
     )
 
@@ -382,7 +384,8 @@ def judge_check(rows: pd.DataFrame) -> pd.DataFrame:
 def flow_rule(rows: pd.DataFrame) -> pd.DataFrame:
     """The study's question per observation and family: the best flow minus the best baseline
     (best: lowest mean judged error, picked on these rows), ranked only where both intervals
-    exclude zero and the judge tells the training mean from its floor on that family."""
+    exclude zero and the judge tells the training mean from its floor on that family; the
+    families the judge passes are one Holm family."""
     judged = judge_check(rows)
     trusted = set(judged.family[(judged.planner == GATE) & judged.tells_apart]) if len(judged) else set()
     out = []
@@ -393,24 +396,18 @@ def flow_rule(rows: pd.DataFrame) -> pd.DataFrame:
             continue
         flow, baseline = flows.idxmin(), baselines.idxmin()
         compared = _compare(part, flow, baseline, family)
-        side = compared.pop("side")
-        if family not in trusted:
-            verdict = f"no ranking (the judge does not tell the {GATE} input from the recorded inputs)"
-        elif side:
-            verdict = f"{flow if side < 0 else baseline} lower"
-        else:
-            verdict = "no ranking (an interval contains 0)"
-        out.append(
-            dict(
-                observation=observation,
-                family=family,
-                best_flow=flow,
-                best_baseline=baseline,
-                **compared,
-                verdict=verdict,
-            )
-        )
-    return pd.DataFrame(out)
+        compared.pop("side")
+        out.append(dict(observation=observation, family=family, best_flow=flow, best_baseline=baseline, **compared))
+    table = pd.DataFrame(out)
+    if table.empty:
+        return table
+    judged_by = table.family.isin(trusted)
+    names = lambda index, row: (row.best_flow, row.best_baseline)  # noqa: E731
+    ranked = stats.family_verdicts(table[judged_by], names) if judged_by.any() else table[judged_by]
+    untrusted = table[~judged_by].assign(
+        holm_p=np.nan, verdict=f"no ranking (the judge does not tell the {GATE} input from the recorded inputs)"
+    )
+    return pd.concat([ranked, untrusted]).sort_index()
 
 
 def per_step(rows: pd.DataFrame) -> pd.DataFrame:

@@ -1,0 +1,43 @@
+"""The README's result block is generated from the shipped study rows: a hand edit, a stale
+number or a ranking the rule does not allow shows up here as a difference."""
+
+import pandas as pd
+import pytest
+
+from softflow.profiles import get_profile
+from softflow.report import readme
+from softflow.store import REPO
+
+
+def test_the_committed_block_is_what_the_shipped_rows_make():
+    text = (REPO / "README.md").read_text()
+    block = readme.result_block(get_profile("paper"))
+    assert readme.with_block(text, block) == text, "README.md's result block is stale: run `make readme`"
+
+
+def test_a_block_replaces_only_what_lies_between_the_markers():
+    text = f"intro\n{readme.BEGIN}\nold words\n{readme.END}\nrest\n"
+    assert readme.with_block(text, "NEW") == "intro\nNEW\nrest\n"
+    for broken in ("no markers", f"{readme.END}\n{readme.BEGIN}", f"{readme.BEGIN}{readme.BEGIN}{readme.END}"):
+        with pytest.raises(ValueError, match="once each"):
+            readme.with_block(broken, "NEW")
+
+
+def test_the_words_are_the_verdict_tables_words():
+    """A comparison is quoted with its table's verdict, whichever it is: a made-up table whose
+    ranking Holm removes is printed so, and one without a ranking ranks nothing."""
+    table = pd.DataFrame(
+        dict(
+            best_rf=["rf", "rf-fwd"],
+            best_baseline=["mlp", "lstm"],
+            difference_mm=[-1.234, 0.5],
+            low=[-2.0, -0.1],
+            high=[-0.5, 1.2],
+            verdict=["RF lower (not after Holm)", "no ranking"],
+        ),
+        index=pd.MultiIndex.from_tuples([("tip", "shape"), ("tip+disk", "random")], names=["observation", "family"]),
+    )
+    words = readme._two_segment(table)
+    assert [w["verdict"] for w in words] == ["RF lower (not after Holm)", "no ranking"]
+    assert (words[0]["mm"], words[0]["interval"]) == ("-1.23", "[-2.00, -0.50]")
+    assert (words[1]["best_rf"], words[1]["best_baseline"]) == ("RF-FWD", "LSTM")
