@@ -97,7 +97,8 @@ def main() -> int:
             subprocess.run(["git", "clone", "--quiet", str(REPO), str(clone)], check=True)
             subprocess.run(["git", "-C", str(clone), "checkout", "--quiet", tested], check=True)
             venv_seconds, venv_code = timed(["make", "venv"], clone, logs / f"portability_{name}_venv.log")
-            spread_log = Path(scratch) / f"{name}.jsonl"
+            spread_log = logs / f"portability_{name}_cells.jsonl"  # kept: which cell used how much
+            spread_log.unlink(missing_ok=True)
             env = dict(forced, **{SPREAD_LOG: str(spread_log)})
             seconds, code = timed(["make", "test"], clone, logs / f"portability_{name}_test.log", env)
             cells = [json.loads(line) for line in spread_log.read_text().splitlines()] if spread_log.exists() else []

@@ -510,6 +510,7 @@ def test_results_page_holds_every_table_and_section_and_only_existing_figures(pr
         "## RF-FWD's consistency weight (notebook 11)",
         "## A two-segment rod: four inputs, one tip (notebook 12)",
         "## Learning from recorded runs (notebook 13)",
+        "## A real robot: the ASL trunk (notebook 14)",
         "## Numbers across CPUs",
         "## The paper's claims, reproduced or not",
         "## Design choices",

@@ -28,7 +28,7 @@ from softflow.report.study_tables import (
     verdict_counts,
 )
 from softflow.report.tables import BASELINES, LABELS, RF_FAMILY, markdown, our_table, read_result, read_sweep
-from softflow.studies import stats
+from softflow.studies import stats, trunk
 from softflow.studies.recorded import RECORDED
 from softflow.studies.recorded import cells as recorded_cells
 from softflow.studies.study import FLOOR
@@ -609,6 +609,53 @@ def recorded_section(profile: Profile) -> list[str]:
     ]
 
 
+def trunk_summary(rows: pd.DataFrame, cells: int | None) -> str:
+    """One paragraph on the real robot (notebook 14): how many cells have rows, whether the judge
+    tells the training mean from the recorded inputs per family (the gate), each observation's
+    best flow against its best baseline with the verdict, and the conditional spread over its
+    floor, tip alone against every disk; whichever way they come out."""
+    computed = rows["key"].nunique()
+    done = f"{computed} of the study's {cells} cells have rows" if cells else f"{computed} cells have rows"
+    if rows.empty:
+        return f"On the ASL trunk no cell has rows yet ({done}; `softflow sweep trunk --profile paper`)."
+    check = trunk.judge_check(rows)
+    gate = check[check.planner == trunk.GATE]
+    told = [f"{row.family} {row.difference_mm:+.2f} mm [{row.low:+.2f}, {row.high:+.2f}]" for row in gate.itertuples()]
+    passed = int(gate.tells_apart.sum())
+    sentences = [
+        f"On the ASL trunk's held-out runs ({done}), the forward judge puts the training-mean input above the recorded "
+        f"inputs by {'; '.join(told)} (judged tip error, mm), telling them apart on {passed} of {len(gate)} families."
+    ]
+    rule = trunk.flow_rule(rows)
+    for observation, part in rule.groupby("observation", sort=False) if len(rule) else ():
+        said = [
+            f"{row.family} {row.difference_mm:+.2f} mm [{row.low:+.2f}, {row.high:+.2f}] ({row.best_flow} against "
+            f"{row.best_baseline}: {row.verdict})"
+            for row in part.itertuples()
+        ]
+        sentences.append(f"Best flow minus best baseline observing {observation}: {'; '.join(said)}.")
+    spread = trunk.spread(rows)
+    if len(spread):
+        ratios = [f"{observation} {row['spread / floor']:.1f}x" for observation, row in spread.iterrows()]
+        sentences.append(f"The conditional spread of u over its estimator floor: {', '.join(ratios)}.")
+    return " ".join(sentences)
+
+
+def trunk_section(profile: Profile) -> list[str]:
+    """A real robot (notebook 14): the trunk study's verdicts from its rows as far as computed."""
+    try:
+        rows = read_sweep(profile, "trunk")
+    except ValueError:  # not run in this profile yet
+        rows = pd.DataFrame(columns=["key"])
+    return [
+        "## A real robot: the ASL trunk (notebook 14)",
+        "",
+        trunk_summary(rows, len(trunk.cells(profile.name)) if profile.name in trunk.TRUNK_GRID else None),
+        "",
+        *([markdown(trunk.flow_rule(rows).set_index(["observation", "family"])), ""] if len(rows) else []),
+    ]
+
+
 def portability_section(profile: Profile) -> list[str]:
     """Which numbers are the same on every CPU and which move, and by how much (make portability)."""
     bench = profile.output_dir / "bench"
@@ -693,6 +740,7 @@ def results_page(profile: Profile, tables: dict, run_dir: Path) -> str:
     lines += consistency_weight_section(profile)
     lines += two_segment_section(profile)
     lines += recorded_section(profile)
+    lines += trunk_section(profile)
     lines += portability_section(profile)
     lines += ["## The paper's claims, reproduced or not", "", markdown(claims(profile)), ""]
     lines += design_choices(profile)
