@@ -84,19 +84,9 @@ def _interval_columns(interval, t, prefix: str = "", estimate: str = "difference
     }
 
 
-BEST_AGAINST_BEST = (
-    "family",
-    "best_rf",
-    "best_baseline",
-    "difference_mm",
-    "low",
-    "high",
-    "t_low",
-    "t_high",
-    "t_p",
-    "holm_p",
-    "verdict",
-)
+# A verdict table's columns for one comparison (``_interval_columns``, ``stats.family_verdicts``).
+COMPARISON = ("difference_mm", "low", "high", "t_low", "t_high", "t_p", "holm_p", "verdict")
+BEST_AGAINST_BEST = ("family", "best_rf", "best_baseline", *COMPARISON)
 
 
 def _best_names(index, row) -> tuple[str, str]:
@@ -476,20 +466,7 @@ def recorded_table(rows: pd.DataFrame) -> pd.DataFrame:
     return pd.concat(parts, names=index)
 
 
-RECORDING_RULE = (
-    "gravity",
-    "runs",
-    "best_recorded",
-    "best_simulator",
-    "difference_mm",
-    "low",
-    "high",
-    "t_low",
-    "t_high",
-    "t_p",
-    "holm_p",
-    "verdict",
-)
+RECORDING_RULE = ("gravity", "runs", "best_recorded", "best_simulator", *COMPARISON)
 
 
 def recording_rule(rows: pd.DataFrame, family: str = "shape", value: str = "rmse_mm") -> pd.DataFrame:
