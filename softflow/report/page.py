@@ -609,11 +609,12 @@ def recorded_section(profile: Profile) -> list[str]:
     ]
 
 
-def trunk_summary(rows: pd.DataFrame, cells: int | None) -> str:
+def trunk_summary(rows: pd.DataFrame, rule: pd.DataFrame, cells: int | None) -> str:
     """One paragraph on the real robot (notebook 14): how many cells have rows, whether the judge
     tells the training mean from the recorded inputs per family (the gate), each observation's
-    best flow against its best baseline with the verdict, and the conditional spread over its
-    floor, tip alone against every disk; whichever way they come out."""
+    best flow against its best baseline with the verdict (``rule``: ``trunk.flow_rule`` of the
+    rows), and the conditional spread over its floor, tip alone against every disk; whichever way
+    they come out."""
     computed = rows["key"].nunique()
     done = f"{computed} of the study's {cells} cells have rows" if cells else f"{computed} cells have rows"
     if rows.empty:
@@ -626,7 +627,6 @@ def trunk_summary(rows: pd.DataFrame, cells: int | None) -> str:
         f"On the ASL trunk's held-out runs ({done}), the forward judge puts the training-mean input above the recorded "
         f"inputs by {'; '.join(told)} (judged tip error, mm), telling them apart on {passed} of {len(gate)} families."
     ]
-    rule = trunk.flow_rule(rows)
     for observation, part in rule.groupby("observation", sort=False) if len(rule) else ():
         said = [
             f"{row.family} {row.difference_mm:+.2f} mm [{row.low:+.2f}, {row.high:+.2f}] ({row.best_flow} against "
@@ -647,12 +647,13 @@ def trunk_section(profile: Profile) -> list[str]:
         rows = read_sweep(profile, "trunk")
     except ValueError:  # not run in this profile yet
         rows = pd.DataFrame(columns=["key"])
+    rule = trunk.flow_rule(rows) if len(rows) else pd.DataFrame()
     return [
         "## A real robot: the ASL trunk (notebook 14)",
         "",
-        trunk_summary(rows, len(trunk.cells(profile.name)) if profile.name in trunk.TRUNK_GRID else None),
+        trunk_summary(rows, rule, len(trunk.cells(profile.name)) if profile.name in trunk.TRUNK_GRID else None),
         "",
-        *([markdown(trunk.flow_rule(rows).set_index(["observation", "family"])), ""] if len(rows) else []),
+        *([markdown(rule.set_index(["observation", "family"])), ""] if len(rule) else []),
     ]
 
 
