@@ -5,6 +5,10 @@
   exported as one ONNX graph (``control.export_onnx``) run by onnxruntime on one thread (each
   called as a robot's loop calls it: the step with a state's float64 numbers, the session with
   (1, d) float32 arrays; RF-Physical has no graph);
+- for each flow, a 16-draw spread at one transition (``Controller.sample_step``, the draws as
+  one batch) beside its step;
+- RF-Physical's prior at batch 1: the inverse-statics grid its step reads (``InverseGrid``)
+  beside the table's Gauss-Newton inverse that ``plan`` reads;
 - per control step of RF-FWD for N = 1..20 Euler steps: eager torch vs the lean numpy
   sampler (LeanFlow), median and p99 over 2000 calls each;
 - a whole 500-step trajectory planned in one batched call (Controller.plan).
@@ -78,12 +82,25 @@ def main():
             results["step"][name]["onnx_ms"] = {
                 k: 1e3 * v for k, v in metrics.latency(graph, repeats=args.repeats).items()
             }
-        onnx_ms = results["step"][name].get("onnx_ms")
+        if controller.generative:
+            spread = metrics.latency(controller.sample_step, window[0, 0], window[0, 1], 16, repeats=args.repeats)
+            results["step"][name]["spread16_ms"] = {k: 1e3 * v for k, v in spread.items()}
+            results["step"][name]["spread16_over_step"] = spread["median"] / step["median"]
+        if controller.statics is not None:
+            p = window[:, 1, :3]  # (1, 3)
+            for prior, inverse in (("grid", controller.statics_grid.inverse), ("table", controller.statics.inverse)):
+                took = metrics.latency(inverse, p, repeats=args.repeats)
+                results["prior"] = results.get("prior", {}) | {f"{prior}_ms": {k: 1e3 * v for k, v in took.items()}}
+        row = results["step"][name]
+        onnx_ms = row.get("onnx_ms")
         print(
             f"{name:12s} step: median {1e3 * step['median']:.3f} ms (p99 {1e3 * step['p99']:.3f}); "
             f"eager torch median {1e3 * eager['median']:.3f} ms (p99 {1e3 * eager['p99']:.3f}); "
             + (f"onnxruntime median {onnx_ms['median']:.3f} ms (p99 {onnx_ms['p99']:.3f})" if onnx_ms else "no graph")
+            + (f"; 16 draws {spread:.2f}x the step" if (spread := row.get("spread16_over_step")) else "")
         )
+    grid, table = results["prior"]["grid_ms"], results["prior"]["table_ms"]
+    print(f"RF-Physical prior: grid median {grid['median']:.4f} ms, table (Gauss-Newton) {table['median']:.3f} ms")
     model, _ = training.ensure_trained(args.model, profile, dataset)  # the shipped model, or trained with its budget
     lean = LeanFlow(model)
     with torch.inference_mode(), one_thread():

@@ -12,7 +12,7 @@ from softflow import control, data, training
 from softflow.models import checkpoints
 from softflow.models.baselines import InverseMLP
 from softflow.models.common import one_thread
-from softflow.models.flow import RectifiedFlow
+from softflow.models.flow import MeanFlow, RectifiedFlow
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import SIM_ROBOT, U_MAX
 
@@ -43,6 +43,25 @@ def test_rf_keeps_both_modes_where_regression_averages_them():
     assert averaged.abs().mean() < 0.2
     assert (sampled.abs() > 0.7).float().mean() > 0.9  # near +-1, not at the mean 0
     assert 0.3 < (sampled[:, 0] > 0).float().mean() < 0.7  # both modes, in proportion
+    with torch.no_grad():
+        one_euler_step = flow.predict(window[:512], steps=1)  # z + v(z, 0) = z + E[xi] - z: the mean
+    assert one_euler_step.abs().mean() < 0.3  # the regression's answer, as the theory says
+
+
+def test_a_one_step_flow_keeps_both_modes_in_one_call():
+    """MeanFlow learns the average velocity over the whole path: one call from z lands on a
+    mode, the same one its own 16 small steps reach from the same z."""
+    torch.manual_seed(0)
+    window = torch.randn(512, 2, 6).repeat(2, 1, 1)
+    u = torch.cat([torch.ones(512, 2), -torch.ones(512, 2)])
+    with one_thread():
+        flow = fit(MeanFlow(hidden=64, layers=2, steps=1), window, u, steps=600)
+    z = torch.randn(512, 2)
+    with torch.no_grad():
+        one, many = flow.predict(window[:512], noise=z), flow.predict(window[:512], noise=z, steps=16)
+    assert (one.abs() > 0.7).float().mean() > 0.7  # measured 0.81: near +-1, not at the mean 0
+    assert 0.3 < (one[:, 0] > 0).float().mean() < 0.7  # both modes, in proportion
+    assert ((one > 0) == (many > 0)).float().mean() > 0.9  # measured 0.99: the span's average is the flow's
 
 
 def test_rf_learns_held_out_transitions(dataset, trained):

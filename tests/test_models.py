@@ -198,7 +198,7 @@ def test_a_plan_beyond_the_actuator_range_is_clipped_with_a_counted_warning(data
     np.testing.assert_array_equal(plans[0], u)  # evaluations clip silently: saturation is what they measure
 
 
-@pytest.mark.parametrize("name", ["mlp", "mlp-physical", "rf", "rf-physical", "rf-fwd"])
+@pytest.mark.parametrize("name", ["mlp", "mlp-physical", "rf", "rf-physical", "rf-fwd", "rf-1", "rf-fwd-1"])
 def test_step_gives_the_planned_u_of_each_transition(name, dataset, trained):
     controller = control.Controller(trained(name)[0], name)
     states = dataset.states[dataset.test[0], :60]
@@ -207,9 +207,30 @@ def test_step_gives_the_planned_u_of_each_transition(name, dataset, trained):
         planned = controller.plan(states)
         stepped = controller.step(states[:-1], states[1:])  # a batch of transitions
         single = controller.step(states[10], states[11])  # one transition
-    np.testing.assert_allclose(stepped, planned, atol=1e-5)
+    tolerance = 1e-3 if controller.model.needs_statics else 1e-5  # step's prior: the grid, 1e-3 N of plan's table
+    np.testing.assert_allclose(stepped, planned, atol=tolerance)
     assert single.shape == (2,)
-    np.testing.assert_allclose(single, planned[10], atol=1e-5)
+    np.testing.assert_allclose(single, planned[10], atol=tolerance)
+
+
+@pytest.mark.parametrize("name", ["rf", "rf-physical", "rf-1"])
+def test_step_draws_are_the_flows_samples_from_the_same_noise(name, dataset, trained):
+    controller = control.Controller(trained(name)[0], name)
+    states = dataset.states[dataset.test[0], 30:33]  # two transitions
+    draws = controller.sample_step(states[:-1], states[1:], 16, seed=3)  # (16, 2, m)
+    noise = np.random.default_rng(3).standard_normal((32, 2))  # the draws' z, draw-major
+    window = torch.as_tensor(np.tile(np.stack([states[:-1], states[1:]], 1), (16, 1, 1)), dtype=torch.float32)
+    extras = controller.model.extras(window.numpy().astype(np.float64), controller.statics)  # {prior: (32, 1, m)}
+    extras = {k: torch.as_tensor(v[:, 0], dtype=torch.float32) for k, v in extras.items()}
+    with torch.inference_mode():
+        expected = controller.model.predict(window, **extras, noise=torch.as_tensor(noise, dtype=torch.float32))
+    tolerance = 1e-3 if controller.model.needs_statics else 1e-5  # the grid's prior against the table's
+    np.testing.assert_allclose(draws.reshape(32, 2), expected.numpy(), atol=tolerance)
+    assert draws.std(0).min() > 1e-3  # 16 draws, not one: the flow is uncertain about each input
+    one = controller.sample_step(states[0], states[1], 16, seed=3)
+    assert one.shape == (16, 2)
+    draw = lambda: controller.sample_step(states[0], states[1], 4)  # noqa: E731
+    assert not np.array_equal(draw(), draw())  # the controller's generator: fresh draws at each call
 
 
 def test_step_checks_its_input_and_needs_a_per_step_model(dataset, trained):

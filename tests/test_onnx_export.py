@@ -113,6 +113,18 @@ def test_the_graph_steps_as_the_controller_on_its_rods_references(name, robot, g
     assert outside.dtype == bool and not outside.any()
 
 
+@pytest.mark.parametrize("name", ["rf-1", "rf-fwd-1"])
+@pytest.mark.parametrize("steps", [1, 2])
+def test_a_one_step_flows_graph_steps_as_the_controller(name, steps, trained, tmp_path):
+    model = trained(name)[0]
+    model.steps = steps  # at one step and at two: each step's span enters the first layer
+    controller = control.Controller(model, name)
+    x_t, x_next = transitions(rod_references(SIM_ROBOT, "vertical"), controller)
+    u, outside = run_graph(control.export_onnx(controller, tmp_path / f"{name}.onnx"), x_t, x_next)
+    np.testing.assert_allclose(u, stepped(controller, x_t, x_next), rtol=0, atol=TOLERANCE)
+    assert metadata(tmp_path / f"{name}.onnx")["euler_steps"] == steps and not outside.any()
+
+
 def test_the_graph_is_the_steps_arithmetic_with_its_metadata(tmp_path):
     controller = control.load_controller("rf-fwd")
     path = control.export_onnx(controller, tmp_path / "new" / "rf-fwd.onnx")  # its folder is made

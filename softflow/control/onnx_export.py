@@ -144,7 +144,7 @@ def _mlp(g: _Graph, lean, features: str) -> str:
 def _flow(g: _Graph, lean, features: str) -> str:
     """``LeanFlow.predict`` from z = 0 before denormalisation, its Euler steps unrolled: (B, m).
     The condition's share of the first layer is computed once; at the first step xi = 0 and
-    tau = 0, so the first layer is that share alone."""
+    tau = 0, so the first layer is that share (and a one-step flow's span) alone."""
     n, (_, first_b) = lean.steps, lean.weights[0]
     w_condition = g.constant("layer0.weight_condition", lean.w_condition)
     condition_part = g.op("MatMul", features, w_condition, out="condition.matmul")
@@ -153,10 +153,13 @@ def _flow(g: _Graph, lean, features: str) -> str:
     layers, xi = _layers(g, lean, 1), None
     for k in range(n):
         h = first_bias
+        time_weight = (k / n) * lean.w_tau + lean.w_span / n  # tau = k/n, a one-step flow's span 1/n
         if xi is not None:
-            tau_part = g.constant(f"step{k}.tau_weight", (k / n) * lean.w_tau)  # tau = k/n
-            h = g.op("Add", g.op("MatMul", xi, w_xi, out=f"step{k}.xi.matmul"), tau_part, out=f"step{k}.xi_tau")
+            time_part = g.constant(f"step{k}.time_weight", time_weight)
+            h = g.op("Add", g.op("MatMul", xi, w_xi, out=f"step{k}.xi.matmul"), time_part, out=f"step{k}.xi_tau")
             h = g.op("Add", h, first_bias, out=f"step{k}.layer0")
+        elif time_weight.any():
+            h = g.op("Add", first_bias, g.constant(f"step{k}.time_weight", time_weight), out=f"step{k}.layer0")
         for i, layer in enumerate(layers, 1):
             h = g.linear(g.silu(h), layer, f"step{k}.layer{i}")
         increment = g.op("Div", h, steps, out=f"step{k}.increment")  # velocity / n

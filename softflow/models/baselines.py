@@ -5,7 +5,6 @@ the prior without the generative model, to tell their benefits apart."""
 
 from __future__ import annotations
 
-import numpy as np
 import torch
 from torch import nn
 
@@ -50,18 +49,14 @@ class LeanMLP(LeanModel):
 
     def __init__(self, model: InverseMLP):
         super().__init__(model, model.net)
-        self.prior = model.prior
+        self.w_first, self.b_first = self.fold_features(*self.weights[0])
 
     def predict(self, window, prior=None):
         """u (B, m) for state windows (B, 2, d) [x_t, x_{t+1}] (and the prior u_phys (B, m))."""
-        h = self.features(window)
-        if self.prior:
-            prior = np.asarray(prior, dtype=np.float32)
-            h = np.concatenate([h, self._normalize("prior_norm", prior)], -1)
-        for k, (w, b) in enumerate(self.weights):
-            h = (self.silu(h) if k else h) @ w + b
-        target = "residual_norm" if self.prior else "action_norm"
-        u = h * self.buffers[f"{target}.std"] + self.buffers[f"{target}.mean"]
+        h = self.first_layer(window, prior, self.w_first, self.b_first)  # (B, H)
+        for w, b in self.weights[1:]:
+            h = self.silu(h) @ w + b
+        u = h * self.u_std + self.u_mean
         return u + prior if self.prior else u
 
 

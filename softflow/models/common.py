@@ -8,6 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import torch
+from scipy.special import expit
 from torch import nn
 
 
@@ -170,7 +171,11 @@ def mlp(sizes, activation=nn.SiLU) -> nn.Sequential:
 
 class LeanModel:
     """What the lean numpy samplers share: the trained normalisers as float32 arrays and the
-    model's linear layers as (W^T, b), for real-time steps without autograd or dispatch."""
+    model's linear layers as (W^T, b), for real-time steps without autograd or dispatch.
+
+    The state normalisers are folded into the first layer once (``fold_features``), so a
+    step reads [x_t, x_{t+1} - x_t] through one matmul; the difference is taken in float64
+    first, because x_{t+1} and x_t agree in their leading digits."""
 
     def __init__(self, model: InverseModel, net: nn.Sequential):
         self.buffers = {name: b.detach().numpy() for name, b in model.named_buffers()}
@@ -179,17 +184,26 @@ class LeanModel:
             for m in net
             if isinstance(m, nn.Linear)
         ]
+        self.prior = model.prior
+        target = "residual_norm" if self.prior else "action_norm"
+        self.u_std, self.u_mean = (self.buffers[f"{target}.{k}"] for k in ("std", "mean"))
 
-    def _normalize(self, name, x):
-        return (x - self.buffers[f"{name}.mean"]) / self.buffers[f"{name}.std"]
+    def fold_features(self, w, b):
+        """(W, c), float64, such that [x_t, x_{t+1} - x_t] @ W[:2d] (+ u_phys @ W[2d:]) + c equals the
+        normalised features (and prior) times ``w`` (2d or 2d+m, H) plus ``b``."""
+        norms = ["state_norm", "delta_norm"] + (["prior_norm"] if self.prior else [])
+        mean, std = (np.concatenate([self.buffers[f"{n}.{k}"] for n in norms]).astype(float) for k in ("mean", "std"))
+        w = w.astype(np.float64) / std[:, None]
+        return w, b.astype(np.float64) - mean @ w
 
-    def features(self, window):
-        """[x_t, x_{t+1} - x_t] of state windows (B, 2, d), normalised: (B, 2d) float32."""
-        window = np.asarray(window, dtype=np.float32)
-        x, x_next = window[:, -2], window[:, -1]
-        return np.concatenate([self._normalize("state_norm", x), self._normalize("delta_norm", x_next - x)], -1)
+    def first_layer(self, window, prior, w, c) -> np.ndarray:
+        """The first layer's input part (B, H) float32 for state windows (B, 2, d), through the folded
+        (W, c) of ``fold_features``."""
+        x = window[:, -2]
+        h = np.concatenate([x, window[:, -1] - x] + ([prior] if self.prior else []), -1) @ w + c
+        return h.astype(np.float32)
 
     @staticmethod
     def silu(h):
         """h sigmoid(h), without overflow far below zero (there it is 0 to float32 precision)."""
-        return h / (1 + np.exp(-np.maximum(h, -80.0)))
+        return h * expit(h)

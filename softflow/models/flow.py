@@ -6,6 +6,8 @@ actuation along the straight path xi_tau = (1 - tau) z + tau xi, trained with
   RF:          xi = u,             c = (x_t, x_{t+1})
   RF-Physical: xi = u - u_phys,    c = (x_t, x_{t+1}, u_phys), u_phys = inverse statics of p_{t+1}
   RF-FWD:      RF + lambda ||f_phi(x_t, u_hat) - x_{t+1}||^2 with a frozen forward surrogate f_phi.
+A one-step flow (``MeanFlow``: RF-1, RF-FWD-1) learns the average velocity over a span of the
+path instead, and crosses it in one network call.
 """
 
 from __future__ import annotations
@@ -21,6 +23,8 @@ class RectifiedFlow(InverseModel):
     """The velocity field and its sampler. ``prior``: learn the residual around the static
     prior u_phys of the training rod (RF-Physical). ``consistency``: lambda_cons of RF-FWD
     (0 for RF); its frozen forward surrogate is trained first and given to ``attach``."""
+
+    times = 1  # time inputs of the network: tau
 
     def __init__(
         self,
@@ -42,7 +46,7 @@ class RectifiedFlow(InverseModel):
             raise ValueError(f"steps must be a positive integer; got {steps!r}")
         self.steps, self.tau_sampling, self.consistency = steps, tau_sampling, consistency
         m = dims.inputs
-        self.net = mlp([m + 1 + 2 * dims.state + (m if prior else 0)] + [hidden] * layers + [m])
+        self.net = mlp([m + self.times + 2 * dims.state + (m if prior else 0)] + [hidden] * layers + [m])
         if prior:
             self._add_prior()
         if consistency:
@@ -60,18 +64,24 @@ class RectifiedFlow(InverseModel):
     def velocity(self, xi, tau, condition):
         return self.net(torch.cat([xi, tau[:, None], condition], -1))
 
+    def mean_velocity(self, xi, tau, span, condition):
+        """What a step of length ``span`` (B,) from xi at tau moves along: here the velocity at
+        its start (Euler); ``MeanFlow`` learns the average over the span."""
+        return self.velocity(xi, tau, condition)
+
     def endpoint(self, xi_tau, tau, condition):
-        """The one-step estimate of where the flow ends from xi_tau at tau, xi_tau + (1 - tau) v
-        (normalised, (B, m)): what RF-FWD's consistency term judges."""
-        return xi_tau + (1 - tau[:, None]) * self.velocity(xi_tau, tau, condition)
+        """The one-step estimate of where the flow ends from xi_tau at tau,
+        xi_tau + (1 - tau) v (normalised, (B, m)): what RF-FWD's consistency term judges."""
+        return xi_tau + (1 - tau[:, None]) * self.mean_velocity(xi_tau, tau, 1 - tau, condition)
 
     def integrate(self, xi, condition, steps: int, start: float = 0.0):
-        """Euler integration of the flow from xi at tau = ``start`` to tau = 1 in ``steps`` equal
-        steps (normalised, (B, m)); ``predict`` starts it from noise at 0."""
+        """The flow from xi at tau = ``start`` to tau = 1 in ``steps`` equal steps (normalised,
+        (B, m)); ``predict`` starts it from noise at 0."""
         span = 1.0 - start
+        length = torch.full((len(xi),), span / steps, device=xi.device)
         for k in range(steps):
             tau = torch.full((len(xi),), start + span * k / steps, device=xi.device)
-            xi = xi + span * self.velocity(xi, tau, condition) / steps
+            xi = xi + length[:, None] * self.mean_velocity(xi, tau, length, condition)
         return xi
 
     def _sample_tau(self, n, device):
@@ -87,13 +97,16 @@ class RectifiedFlow(InverseModel):
         xi_tau = (1 - tau[:, None]) * z + tau[:, None] * xi
         v = self.velocity(xi_tau, tau, condition)
         loss = torch.mean((v - (xi - z)) ** 2)
-        if self.consistency:
-            # the one-step estimate of the endpoint (``endpoint``, with the v already computed)
-            u_hat = self.target_norm().unnormalize(xi_tau + (1 - tau[:, None]) * v)
-            if self.prior:
-                u_hat = u_hat + prior
-            loss = loss + self.consistency * torch.mean(self.forward_model.residual(window, u_hat) ** 2)
+        if self.consistency:  # the one-step estimate of the endpoint (``endpoint``, with the v already computed)
+            loss = loss + self._consistency(window, xi_tau + (1 - tau[:, None]) * v, prior)
         return loss
+
+    def _consistency(self, window, xi_hat, prior):
+        """RF-FWD's term: lambda ||f_phi(x_t, u_hat) - x_{t+1}||^2 (normalised) at the estimate xi_hat."""
+        u_hat = self.target_norm().unnormalize(xi_hat)
+        if self.prior:
+            u_hat = u_hat + prior
+        return self.consistency * torch.mean(self.forward_model.residual(window, u_hat) ** 2)
 
     def predict(self, window, prior=None, noise=None, steps: int | None = None):
         """u (B, m): Euler integration of the flow from ``noise`` (default: fresh N(0, I))."""
@@ -104,8 +117,59 @@ class RectifiedFlow(InverseModel):
         return u + prior if self.prior else u
 
 
+class MeanFlow(RectifiedFlow):
+    """A flow in one step (MeanFlow: Geng et al. 2025, arXiv:2505.13447): the network learns the
+    average velocity u(xi_s, s, h) = (1/h) int_s^{s+h} v dtau over a span h of the path, so a
+    step of any length lands where the flow would, xi_{s+h} = xi_s + h u. Trained through the
+    identity u = v + h du/ds (the derivative along the path at fixed end s + h: one
+    Jacobian-vector product), with h = 0, plain flow matching, on the rest of the pairs.
+    ``steps`` = 1 samples xi = z + u(z, 0, 1), the transport in one call; the sources and every
+    choice are in docs/assumptions.md ("One-step flows")."""
+
+    times = 2  # tau and the span h
+    SPANNED = 0.25  # share of training pairs with a span h > 0 (the reference's default)
+
+    def __init__(
+        self,
+        hidden: int = 256,
+        layers: int = 3,
+        steps: int = 1,
+        tau_sampling: str = "logit-normal",
+        prior: bool = False,
+        consistency: float = 0.0,
+        *,
+        dims: Dims = PAPER_DIMS,
+    ):
+        super().__init__(hidden, layers, steps, tau_sampling, prior, consistency, dims=dims)
+
+    def velocity(self, xi, tau, condition):
+        return self.mean_velocity(xi, tau, torch.zeros_like(tau), condition)
+
+    def mean_velocity(self, xi, tau, span, condition):
+        return self.net(torch.cat([xi, tau[:, None], span[:, None], condition], -1))
+
+    def compute_loss(self, window, u, prior=None):
+        condition = self.condition(window, prior)
+        xi = self.target_norm().normalize(u - prior if self.prior else u)
+        z = torch.randn_like(xi)
+        a, b = self._sample_tau(len(xi), xi.device), self._sample_tau(len(xi), xi.device)
+        start, end = torch.minimum(a, b), torch.maximum(a, b)
+        end = torch.where(torch.rand(len(xi), device=xi.device) < self.SPANNED, end, start)
+        xi_s = (1 - start[:, None]) * z + start[:, None] * xi
+        v = xi - z  # the conditional velocity, constant along the straight path
+        average, along = torch.func.jvp(
+            lambda x, s: self.mean_velocity(x, s, end - s, condition), (xi_s, start), (v, torch.ones_like(start))
+        )
+        target = (v + (end - start)[:, None] * along).detach()
+        loss = torch.mean((average - target) ** 2)
+        if self.consistency:  # judged at the one-step estimate from the same point
+            loss = loss + self._consistency(window, self.endpoint(xi_s, start, condition), prior)
+        return loss
+
+
 class LeanFlow(LeanModel):
-    """The same sampler as ``RectifiedFlow.predict`` in plain numpy, for low-latency planning.
+    """The same sampler as ``RectifiedFlow.predict`` (and ``MeanFlow``'s) in plain numpy, for
+    low-latency planning.
 
     Fuses what the Euler loop repeats: the condition's contribution to the first layer is
     computed once per call, not once per step, and there is no autograd or dispatch
@@ -114,24 +178,21 @@ class LeanFlow(LeanModel):
 
     def __init__(self, model: RectifiedFlow):
         super().__init__(model, model.net)
-        first, _ = self.weights[0]
+        first, b = self.weights[0]
         m = model.dims.inputs
-        self.w_xi, self.w_tau, self.w_condition = first[:m], first[m], first[m + 1 :]
-        self.prior, self.steps = model.prior, model.steps
+        self.w_xi, self.w_tau, self.w_condition = first[:m], first[m], first[m + model.times :]
+        self.w_span = first[m + 1] if model.times == 2 else np.zeros_like(self.w_tau)  # MeanFlow's span h
+        self.w_first, self.b_first = self.fold_features(self.w_condition, b)
+        self.steps = model.steps
 
     def predict(self, window: np.ndarray, noise: np.ndarray, prior: np.ndarray | None = None, steps: int | None = None):
         """u (B, m) for state windows (B, 2, d) [x_t, x_{t+1}] and noise z (B, m)."""
-        condition = [self.features(window)]
-        if self.prior:
-            prior = np.asarray(prior, dtype=np.float32)
-            condition.append(self._normalize("prior_norm", prior))
-        first_bias = np.concatenate(condition, -1) @ self.w_condition + self.weights[0][1]  # once per call
+        first_bias = self.first_layer(window, prior, self.w_first, self.b_first)  # (B, H), once per call
         xi, n = np.array(noise, dtype=np.float32), self.steps if steps is None else steps
         for k in range(n):
-            h = xi @ self.w_xi + (k / n) * self.w_tau + first_bias
+            h = xi @ self.w_xi + ((k / n) * self.w_tau + self.w_span / n) + first_bias
             for w, b in self.weights[1:]:
                 h = self.silu(h) @ w + b
             xi = xi + h / n
-        target = "residual_norm" if self.prior else "action_norm"
-        u = xi * self.buffers[f"{target}.std"] + self.buffers[f"{target}.mean"]
+        u = xi * self.u_std + self.u_mean
         return u + prior if self.prior else u

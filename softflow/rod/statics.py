@@ -291,7 +291,7 @@ class StaticTable:
         _two_inputs(sim, "StaticTable")
         self.robot, self.u_range = sim.robot, u_range
         grid = np.linspace(-u_range, u_range, int(round(2 * u_range / step)) + 1)
-        spec = dict(simulator=sim.spec(), u_range=u_range, step=step, version=STATICS_VERSION)
+        self.spec = spec = dict(simulator=sim.spec(), u_range=u_range, step=step, version=STATICS_VERSION)
 
         def compute():
             u = np.stack(np.meshgrid(grid, grid, indexing="ij"), -1).reshape(-1, 2)
@@ -331,3 +331,77 @@ class StaticTable:
             du = np.linalg.solve(JT @ J + 1e-12 * np.eye(2), JT @ (p - tip)[..., None])[..., 0]
             u = np.clip(u + du, -self.u_range, self.u_range)
         return u.reshape(batch_shape + (2,))
+
+
+class InverseGrid:
+    """``StaticTable.inverse`` tabulated once more, for RF-Physical's real-time step: trilinear
+    interpolation in coordinates where the inverse is smooth, the gravity-free arc's actuation
+    of the tip's chord (``arc_actuation``, closed form; (B, 2), N) and the chord's length |p|.
+
+    Built from the table in seconds, once per rod, and cached by content. Within 1e-3 N of the
+    table on the paper rod's states (tests/test_statics_grid.py; the table is within ~1e-6 N
+    of ``inverse_static``). A point off the grid, or in a cell where the inverse meets the
+    table's edge +-u_range (a kink no interpolant follows), is solved by the table itself."""
+
+    def __init__(self, table: StaticTable, arcs: int = 97, lengths: int = 17):
+        self.table, self.robot = table, table.robot
+        L, R = table.robot.length, table.u_range
+        self.low, self.high = np.array([-R, -R, 0.5 * L]), np.array([R, R, 1.001 * L])
+        self.shape = np.array([arcs, arcs, lengths])
+        self.spacing = (self.high - self.low) / (self.shape - 1)
+        spec = dict(table=table.spec, arcs=arcs, lengths=lengths, version=STATICS_VERSION)
+
+        def compute():
+            axes = [np.linspace(a, b, n) for a, b, n in zip(self.low, self.high, self.shape)]
+            nodes = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)  # (N, 3) coordinates
+            u = table.inverse(_chord_point(table.robot, nodes))  # (N, 2)
+            edge = (np.abs(u) >= table.u_range - 1e-9).any(-1).reshape(*self.shape)  # clipped nodes
+            kink = np.zeros(self.shape - 1, bool)  # cells with a clipped corner
+            for corner in np.ndindex(2, 2, 2):
+                kink |= edge[tuple(slice(c, c + n - 1) for c, n in zip(corner, self.shape))]
+            return dict(u=u, kink=kink)
+
+        arrays = cached_arrays(
+            cache_file(DATA_DIR, "inverse-grid", spec),
+            compute,
+            valid=lambda a: a.get("u") is not None and a["u"].shape == (int(np.prod(self.shape)), 2),
+        )
+        self.u, self.kink = arrays["u"], arrays["kink"].ravel()
+        strides = np.array([arcs * lengths, lengths, 1])
+        self.strides, self.cell_strides = strides, np.array([(arcs - 1) * (lengths - 1), lengths - 1, 1])
+        self.corners = np.array(list(np.ndindex(2, 2, 2))) @ strides  # (8,) flat offsets of a cell's corners
+        self.arc_scale = 2 * table.robot.bending_stiffness / table.robot.cable_radius / table.robot.length
+
+    def inverse(self, p) -> np.ndarray:
+        """u (B, 2) for tip positions p (B, 3), as ``StaticTable.inverse`` to 1e-3 N."""
+        s = (self.coordinates(p) - self.low) / self.spacing  # (B, 3) in grid units
+        cell = np.minimum(np.maximum(s, 0).astype(np.int64), self.shape - 2)  # (B, 3); the top face joins the last
+        f = s - cell  # (B, 3) in [0, 1] inside the grid
+        corners = self.u[(cell @ self.strides)[:, None] + self.corners]  # (B, 8, 2)
+        for axis in range(3):  # halve the corners along each axis in turn: 8 -> 4 -> 2 -> 1
+            half = len(self.corners) >> (axis + 1)
+            low, high = corners[:, :half], corners[:, half : 2 * half]
+            corners = low + f[:, axis, None, None] * (high - low)
+        u = corners[:, 0]
+        exact = ~((s >= 0) & (s <= self.shape - 1)).all(-1) | self.kink[cell @ self.cell_strides]
+        if exact.any():
+            u[exact] = self.table.inverse(p[exact])
+        return u
+
+    def coordinates(self, p) -> np.ndarray:
+        """(arc actuation (2), chord length) (B, 3) of tip points p (B, 3): ``arc_actuation`` with the
+        heading's cosine and sine taken as y / lateral and z / lateral."""
+        lateral = np.hypot(p[:, 1], p[:, 2])
+        half_bend = np.arctan2(lateral, p[:, 0])
+        scale = (self.arc_scale * half_bend / (lateral + 1e-300))[:, None]  # on the axis y = z = 0: a = 0
+        return np.concatenate([scale * p[:, 1:], np.hypot(p[:, 0], lateral)[:, None]], -1)
+
+
+def _chord_point(robot: Robot, coordinates):
+    """Tip points (B, 3) of grid coordinates (B, 3) = (arc actuation (2), chord length): the
+    inverse of ``arc_actuation`` along the chord, scaled to the length."""
+    a, length = coordinates[:, :2], coordinates[:, 2]
+    half_bend = np.hypot(a[:, 0], a[:, 1]) * robot.length * robot.cable_radius / robot.bending_stiffness / 2
+    heading = np.arctan2(a[:, 1], a[:, 0])
+    lateral = length * np.sin(half_bend)
+    return np.stack([length * np.cos(half_bend), lateral * np.cos(heading), lateral * np.sin(heading)], -1)
