@@ -155,3 +155,16 @@ def test_a_family_of_verdicts_is_adjusted_together():
     assert list(verdicts.verdict) == ["RF lower (not after Holm)"] * 2
     alone = stats.family_verdicts(table.iloc[:1], lambda index, row: ("RF", "MLP"))
     assert list(alone.verdict) == ["RF lower"]
+
+
+def test_a_ratio_of_means_is_paired_over_references():
+    shared = np.random.default_rng(4).uniform(1.0, 10.0, (1, 30))  # what both models share
+    a, b = np.repeat(1.05 * shared, 2, axis=0), np.repeat(shared, 3, axis=0)
+    interval = stats.ratio(a, b)
+    assert (interval.estimate, interval.low, interval.high) == pytest.approx((1.05, 1.05, 1.05))
+    assert stats.within(interval, (0.9, 1.1)) == "within"
+    assert stats.within(stats.ratio(1.2 * a, b), (0.9, 1.1)) == "outside"
+    noisy = a * np.random.default_rng(5).uniform(0.7, 1.5, a.shape)  # a model 0.7 to 1.5 times as far off
+    assert stats.within(stats.ratio(noisy, b), (0.9, 1.1)) == "undecided"
+    with pytest.raises(ValueError, match="same references"):
+        stats.ratio(a, b[:, :5])

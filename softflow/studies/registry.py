@@ -40,6 +40,10 @@ trunk: a real robot, fixed before any row ran: the ASL trunk's recorded runs (da
     MLP, LSTM, Transformer, RF and RF-FWD trained on one run with the tip alone or all three disks
     observed, 3 seeds at 5 000 steps, scored per step and through a forward judge on two held-out
     runs beside the recorded inputs, the training mean and persistence.
+one_step: the one-step flows (RF-1, RF-FWD-1) at 1 and 2 steps beside their parents at 4 and 1
+    Euler steps and the MLP, fixed before any row ran: 3 seeds at 20 000 steps on the paper rod
+    (Table I's references) and the two-segment rod seen at its tip (its shapes and random
+    references); parity with the parent, the tip-alone win, the 1-step Euler collapse.
 """
 
 from __future__ import annotations
@@ -50,6 +54,7 @@ from softflow.studies import (
     data_size,
     design,
     fwd_lambda,
+    one_step,
     protocol,
     recorded,
     smoke,
@@ -73,4 +78,5 @@ STUDIES = {
     "two_segment": Study(two_segment.cells, two_segment.run, two_segment.models),
     "recorded": Study(recorded.cells, recorded.run, recorded.models),
     "trunk": Study(trunk.cells, trunk.run, trunk.models),
+    "one_step": Study(one_step.cells, one_step.run, one_step.models),
 }

@@ -76,6 +76,32 @@ def bootstrap(a, b=None, *, n_boot: int = N_BOOT, level: float = LEVEL, seed: in
     return Interval(float(estimate), float(low), float(high))
 
 
+def ratio(a, b, *, n_boot: int = N_BOOT, level: float = LEVEL, seed: int = 0) -> Interval:
+    """Percentile interval of mean(a) / mean(b), paired over references as ``bootstrap`` pairs a
+    difference: how many times the other's error a model's is."""
+    a, b = _grid(a, "a"), _grid(b, "b")
+    if b.shape[1] != a.shape[1]:
+        raise ValueError(f"a and b must score the same references; got {a.shape[1]} and {b.shape[1]} columns")
+    if not (0 < level < 1 and isinstance(n_boot, int) and n_boot >= 100):
+        raise ValueError(f"need 0 < level < 1 and an integer n_boot >= 100; got {level!r}, {n_boot!r}")
+    rng = np.random.default_rng(seed)
+    references = rng.integers(0, a.shape[1], (n_boot, a.shape[1]))
+    ratios = _resampled_means(a, references, rng) / _resampled_means(b, references, rng)
+    low, high = np.quantile(ratios, [(1 - level) / 2, (1 + level) / 2])
+    return Interval(float(a.mean() / b.mean()), float(low), float(high))
+
+
+def within(interval: Interval, band: tuple[float, float]) -> str:
+    """An equivalence in words: "within" where the interval lies inside ``band`` (low, high),
+    "outside" where it lies wholly beyond one of its ends, else "undecided"."""
+    low, high = band
+    if low <= interval.low and interval.high <= high:
+        return "within"
+    if interval.high < low or interval.low > high:
+        return "outside"
+    return "undecided"
+
+
 def seed_reference_grid(rows: pd.DataFrame, value: str, references=None) -> np.ndarray:
     """One model's rows (columns seed, reference, ``value``) as a (seeds, references) array,
     references in the order given (another model's, to pair with it), else of first appearance."""
