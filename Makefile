@@ -112,7 +112,7 @@ bench: $(STAMP) $(ELASTICA)  # PyElastica is a benchmark-only dependency, in its
 	$(PY) benchmarks/bench_planning.py --profile $(BENCH_PROFILE)
 	$(PY) benchmarks/bench_training.py --profile $(BENCH_PROFILE)
 	$(PY) benchmarks/bench_sweep.py
-	$(PY) benchmarks/bench_loop.py
+	$(PY) benchmarks/bench_loop.py --profile $(BENCH_PROFILE)
 
 # What a newcomer waits for (long: about as much as make test and a ci reproduce together):
 # make venv + make test on a fresh clone, and each notebook's ci run.

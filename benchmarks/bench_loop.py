@@ -13,7 +13,8 @@ Python's garbage collector on (a user's default).
 Reports per run: step latency (the call alone) and the period's work (state, step, send)
 at p50 / p99 / p99.9 and their maximum, deadline misses (a period whose work exceeded 1 ms),
 and late starts (a period begun more than 1 ms after its deadline, e.g. preempted while
-waiting). Uses the shipped paper-profile models. Writes figures/bench/loop.csv.
+waiting). Uses the profile's trained models (default: ci, the paper's network sizes; trains them
+first if missing). Writes figures/bench/loop.csv.
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ import time
 import numpy as np
 from results_file import write_results
 
-from softflow import control, data
+from softflow import control, data, training
 from softflow.profiles import get_profile
 
 PERIOD = 1e-3  # s
@@ -77,10 +78,12 @@ def summary(run: dict) -> dict:
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--models", default="mlp,rf-fwd,rf-physical")
+    parser.add_argument("--profile", default="ci")
+    parser.add_argument("--models", default="mlp,rf-fwd,rf-physical,rf-1")
     parser.add_argument("--seconds", type=float, default=60.0)
     args = parser.parse_args()
-    dataset = data.load_dataset(get_profile("ci"), progress=False)
+    profile = get_profile(args.profile)
+    dataset = data.load_dataset(profile, progress=False)
     plant = dataset.states[dataset.test[0]]  # (501, 6): the simulated rod on a held-out episode
     results = {}
     for condition in ("idle", "one_core_busy"):
@@ -89,7 +92,7 @@ def main():
             busy = subprocess.Popen([sys.executable, "-c", "while True: pass"])
         try:
             for name in args.models.split(","):
-                controller = control.load_controller(name)
+                controller = control.Controller(training.ensure_trained(name, profile, dataset)[0], name)
                 run_loop(controller, plant, 1.0)  # warm-up: caches, the grid, the allocator
                 results[f"{condition}.{name}"] = row = summary(run_loop(controller, plant, args.seconds))
                 print(

@@ -1,10 +1,10 @@
 """Planning latency, side by side in one run (make bench):
 
-- the real-time step, ``Controller.step(x_t, x_next)`` at batch 1, for the MLP and every RF
-  variant, beside the model's eager torch ``predict`` of the same transition and the step
-  exported as one ONNX graph (``control.export_onnx``) run by onnxruntime on one thread (each
-  called as a robot's loop calls it: the step with a state's float64 numbers, the session with
-  (1, d) float32 arrays; RF-Physical has no graph);
+- the real-time step, ``Controller.step(x_t, x_next)`` at batch 1, for the MLP, every RF
+  variant and the one-step flows (RF-1, RF-FWD-1), beside the model's eager torch ``predict`` of
+  the same transition and the step exported as one ONNX graph (``control.export_onnx``) run
+  by onnxruntime on one thread (each called as a robot's loop calls it: the step with a state's
+  float64 numbers, the session with (1, d) float32 arrays; RF-Physical has no graph);
 - for each flow, a 16-draw spread at one transition (``Controller.sample_step``, the draws as
   one batch) beside its step;
 - RF-Physical's prior at batch 1: the inverse-statics grid its step reads (``InverseGrid``)
@@ -63,7 +63,7 @@ def main():
     z = np.zeros((1, 2))
     window_t, z_t = torch.as_tensor(window, dtype=torch.float32), torch.as_tensor(z, dtype=torch.float32)
     results = dict(model=args.model, profile=profile.name, step={}, per_step={})
-    for name in ("mlp", "rf", "rf-physical", "rf-fwd"):
+    for name in ("mlp", "rf", "rf-physical", "rf-fwd", "rf-1", "rf-fwd-1"):
         controller = control.Controller(training.ensure_trained(name, profile, dataset)[0], name)
         extras = {
             k: torch.as_tensor(v[0], dtype=torch.float32)

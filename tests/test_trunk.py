@@ -73,6 +73,18 @@ def test_the_rule_ranks_where_both_intervals_agree_and_the_judge_tells_naive_fro
     assert check.tells_apart["training-mean"] and not check.tells_apart["persistence"]  # persistence gates nothing
 
 
+def test_the_answer_to_notebook_12_reads_the_verdicts_that_survive_holm():
+    assert trunk.notebook_12_answer(trunk.flow_rule(made_rows(naive_gap=4.0))) == "confirms"  # rf lower at the tip
+    assert trunk.notebook_12_answer(trunk.flow_rule(made_rows(naive_gap=0.0))) == "neither"  # the judge ranks nothing
+
+    def rule(tip, disks):
+        return pd.DataFrame(dict(observation=["tip", "disks"], verdict=[tip, disks]))
+
+    assert trunk.notebook_12_answer(rule("rf-fwd lower (not after Holm)", "rf-fwd lower")) == "reverses"
+    assert trunk.notebook_12_answer(rule("rf lower", "rf-fwd lower")) == "both"
+    assert trunk.notebook_12_answer(rule("mlp lower", "no ranking")) == "neither"
+
+
 def test_a_judge_that_cannot_tell_the_training_mean_from_its_floor_ranks_nothing():
     rule = trunk.flow_rule(made_rows(naive_gap=0.0)).set_index("observation")
     assert rule.loc["tip", "verdict"].startswith("no ranking (the judge does not tell")

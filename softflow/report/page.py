@@ -638,6 +638,9 @@ def trunk_summary(rows: pd.DataFrame, rule: pd.DataFrame, cells: int | None) -> 
     if len(spread):
         ratios = [f"{observation} {row['spread / floor']:.1f}x" for observation, row in spread.iterrows()]
         sentences.append(f"The conditional spread of u over its estimator floor: {', '.join(ratios)}.")
+    if cells and computed == cells and len(rule):
+        answer = trunk.ANSWERS[trunk.notebook_12_answer(rule)]
+        sentences.append(f"Under the study's rules, {answer}.")
     return " ".join(sentences)
 
 

@@ -143,6 +143,7 @@ def _trunk(rows: pd.DataFrame, cells: int) -> dict:
         fwd_means=int((trained.model == "rf-fwd").sum()),
         computed=int(rows["key"].nunique()) if len(rows) else 0,
         cells=cells,
+        answer=trunk.ANSWERS[trunk.notebook_12_answer(rule)] if len(rule) else None,
         rule=[
             dict(
                 observation=row.observation,

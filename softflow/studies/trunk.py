@@ -410,6 +410,33 @@ def flow_rule(rows: pd.DataFrame) -> pd.DataFrame:
     return pd.concat([ranked, untrusted]).sort_index()
 
 
+ANSWERS = {  # notebook_12_answer in words, for the README and the results page
+    "confirms": "the real robot confirms notebook 12: a flow is lower from the tip alone, and on no family once "
+    "every disk is seen",
+    "reverses": "the real robot does not confirm notebook 12; it shows the reverse: no flow is lower from the tip "
+    "alone after Holm, while one is lower once every disk is seen",
+    "both": "the real robot does not show notebook 12's contrast: a flow is lower from the tip alone and also once "
+    "every disk is seen",
+    "neither": "the real robot neither confirms nor contradicts notebook 12: no flow is lower from either "
+    "observation after Holm",
+}
+
+
+def notebook_12_answer(rule: pd.DataFrame) -> str:
+    """Does the trunk show notebook 12's pattern, a flow lower from the tip alone and not once
+    every disk is seen? From ``flow_rule``'s verdicts that survive Holm: "confirms" (a flow lower
+    on some family from the tip alone, on none with every disk), "reverses" (the other way round),
+    "both" (a flow lower either way) or "neither" (no flow lower either way)."""
+    flows_lower = {
+        observation: any(
+            verdict.endswith(" lower") and verdict.removesuffix(" lower") in FLOWS for verdict in part.verdict
+        )
+        for observation, part in rule.groupby("observation")
+    }
+    tip, disks = flows_lower.get("tip", False), flows_lower.get("disks", False)
+    return {(True, False): "confirms", (False, True): "reverses", (True, True): "both"}.get((tip, disks), "neither")
+
+
 def per_step(rows: pd.DataFrame) -> pd.DataFrame:
     """Per observation, planner and held-out run: the u error (degrees, RMS), for the flows the
     draws' spread and its rank correlation with the error, mean over seeds (and their count)."""
