@@ -4,7 +4,7 @@
   variant and the one-step flows (RF-1, RF-FWD-1), beside the model's eager torch ``predict`` of
   the same transition and the step exported as one ONNX graph (``control.export_onnx``) run
   by onnxruntime on one thread (each called as a robot's loop calls it: the step with a state's
-  float64 numbers, the session with (1, d) float32 arrays; RF-Physical has no graph);
+  float64 numbers, the session with (1, d) float32 arrays; RF-Physical's graph carries its grid);
 - for each flow, a 16-draw spread at one transition (``Controller.sample_step``, the draws as
   one batch) beside its step;
 - RF-Physical's prior at batch 1: the inverse-statics grid its step reads (``InverseGrid``)
@@ -39,9 +39,7 @@ from softflow.profiles import get_profile
 
 def onnx_step(controller, window):
     """A call of the controller's exported step on the transition ``window`` (1, 2, d), in an
-    onnxruntime session on one thread; None for a model with no graph (a static prior)."""
-    if controller.model.needs_statics:
-        return None
+    onnxruntime session on one thread."""
     options = ort.SessionOptions()
     options.intra_op_num_threads = 1
     with tempfile.TemporaryDirectory() as folder:  # the session holds the graph once made
@@ -78,10 +76,7 @@ def main():
             eager_ms={k: 1e3 * v for k, v in eager.items()}, step_ms={k: 1e3 * v for k, v in step.items()}
         )
         graph = onnx_step(controller, window)
-        if graph is not None:
-            results["step"][name]["onnx_ms"] = {
-                k: 1e3 * v for k, v in metrics.latency(graph, repeats=args.repeats).items()
-            }
+        results["step"][name]["onnx_ms"] = {k: 1e3 * v for k, v in metrics.latency(graph, repeats=args.repeats).items()}
         if controller.generative:
             spread = metrics.latency(controller.sample_step, window[0, 0], window[0, 1], 16, repeats=args.repeats)
             results["step"][name]["spread16_ms"] = {k: 1e3 * v for k, v in spread.items()}
@@ -96,7 +91,7 @@ def main():
         print(
             f"{name:12s} step: median {1e3 * step['median']:.3f} ms (p99 {1e3 * step['p99']:.3f}); "
             f"eager torch median {1e3 * eager['median']:.3f} ms (p99 {1e3 * eager['p99']:.3f}); "
-            + (f"onnxruntime median {onnx_ms['median']:.3f} ms (p99 {onnx_ms['p99']:.3f})" if onnx_ms else "no graph")
+            + f"onnxruntime median {onnx_ms['median']:.3f} ms (p99 {onnx_ms['p99']:.3f})"
             + (f"; 16 draws {spread:.2f}x the step" if (spread := row.get("spread16_over_step")) else "")
         )
     grid, table = results["prior"]["grid_ms"], results["prior"]["table_ms"]

@@ -1,8 +1,8 @@
 """The step exported as one ONNX graph (``control.export_onnx``, ``softflow export MODEL --onnx``)
 against ``Controller.step``, the path it stands in for outside Python: the same u on 10,000
-in-workspace transitions of every shipped model that steps without a prior and of models of
-recorded runs, the same refusals at the workspace margin, the same clipping per input; what has
-no graph yet is refused by name."""
+in-workspace transitions of every shipped model that steps (RF-Physical with its prior's grid)
+and of models of recorded runs, the same refusals at the workspace margin, the same clipping per
+input; what has no one-transition step is refused by name."""
 
 import contextlib
 import functools
@@ -19,7 +19,6 @@ from test_recordings import TINY, point_mass_run
 
 from softflow import HW_ROBOT, SIM_ROBOT, TWO_SEGMENT_ROD, Simulator, cli, control, data, recordings
 from softflow.models import checkpoints
-from softflow.models.registry import build_model
 from softflow.profiles import PROFILES
 from softflow.studies import two_segment
 
@@ -27,11 +26,12 @@ PAIRS = 10_000
 # N. Both paths compute in float32 from the same weights; they differ in the order of the matmul
 # sums and in the sigmoid: at most 3e-6 N measured on the shipped models' references.
 TOLERANCE = 1e-5
-# Every model that has a one-transition step and no static prior, on each rod it ships for.
+# Every model that has a one-transition step, on each rod it ships for.
 SHIPPED = [
     ("mlp", SIM_ROBOT, "vertical"),
     ("rf", SIM_ROBOT, "vertical"),
     ("rf-fwd", SIM_ROBOT, "vertical"),
+    ("rf-physical", SIM_ROBOT, "vertical"),
     ("rf-fwd", HW_ROBOT, "vertical"),
     ("rf-fwd", HW_ROBOT, "horizontal"),
     ("mlp", TWO_SEGMENT_ROD, "vertical"),
@@ -125,6 +125,28 @@ def test_a_one_step_flows_graph_steps_as_the_controller(name, steps, trained, tm
     assert metadata(tmp_path / f"{name}.onnx")["euler_steps"] == steps and not outside.any()
 
 
+def test_an_mlp_with_the_static_prior_exports_as_it_steps(trained, tmp_path):
+    controller = control.Controller(trained("mlp-physical")[0], "mlp-physical")
+    x_t, x_next = transitions(rod_references(SIM_ROBOT, "vertical"), controller, n=2000)
+    u, outside = run_graph(control.export_onnx(controller, tmp_path / "mlp-physical.onnx"), x_t, x_next)
+    np.testing.assert_allclose(u, stepped(controller, x_t, x_next), rtol=0, atol=TOLERANCE)
+    assert not outside.any()
+
+
+def test_a_prior_the_step_solves_by_the_table_is_flagged_by_the_graph(tmp_path):
+    """RF-Physical's graph carries the step's inverse-statics grid; where the step hands the prior
+    to the table (here a tip whose inverse is clipped at the table's edge), the graph cannot follow,
+    and says so in ``outside``."""
+    controller = control.load_controller("rf-physical")
+    table = controller.statics
+    tip, _ = table.tip(np.array([[table.u_range, 1.0], [2.0, 1.0]]))  # at the edge, and well inside
+    x = np.concatenate([tip, np.zeros((2, 3))], 1)  # at rest at each tip
+    np.testing.assert_array_equal(controller.statics_grid.solved_by_table(tip), [True, False])
+    u, outside = run_graph(control.export_onnx(controller, tmp_path / "rf-physical.onnx"), *(x.astype(np.float32),) * 2)
+    np.testing.assert_array_equal(outside, [True, False])
+    np.testing.assert_allclose(u[1], stepped(controller, x[1], x[1]), rtol=0, atol=TOLERANCE)
+
+
 def test_the_graph_is_the_steps_arithmetic_with_its_metadata(tmp_path):
     controller = control.load_controller("rf-fwd")
     path = control.export_onnx(controller, tmp_path / "new" / "rf-fwd.onnx")  # its folder is made
@@ -207,14 +229,10 @@ def test_with_no_margin_only_states_that_are_not_finite_are_outside(tmp_path):
     [
         ("lstm", "lstm reads a window of 10 past transitions: it has no one-transition step to export"),
         ("transformer", "it has no one-transition step to export; plan it in Python"),
-        ("rf-physical", "the graph has no form of that inverse yet; Controller.step remains the path for it"),
-        ("mlp-physical", "static prior found by iteratively inverting a table of the rod's statics"),
     ],
 )
 def test_what_has_no_graph_yet_is_refused(name, message, tmp_path):
-    controller = (
-        control.Controller(build_model(name), name) if name == "mlp-physical" else control.load_controller(name)
-    )
+    controller = control.load_controller(name)
     with pytest.raises(ValueError, match=message):
         control.export_onnx(controller, tmp_path / "model.onnx")
     assert not list(tmp_path.iterdir())

@@ -54,20 +54,17 @@ def export_onnx(controller: Controller, path) -> Path:
     (B, m) float32, clipped to the controller's input range per input, and ``outside`` (B,)
     bool: True where ``step`` refuses the pair (a tip position beyond the workspace margin, or a
     value that is not finite); a controller must not send that row's u. A flow starts from
-    z = 0, as ``step`` does. The metadata (``metadata_props``; numbers and lists as JSON) say what
-    the graph was made from: ``_metadata``. RF-Physical has no graph yet (ValueError): its prior
-    inverts a table of the rod's statics iteratively."""
+    z = 0, as ``step`` does. A model with a static prior (RF-Physical, MLP-Physical) carries the
+    step's inverse-statics grid (``InverseGrid``) in the graph; where the step solves the prior
+    by the table instead (off the grid, or at the table's clipped edge: 7.5e-5 of the paper
+    dataset's states), the graph cannot, and ``outside`` is True. The metadata
+    (``metadata_props``; numbers and lists as JSON) say what the graph was made from: ``_metadata``."""
     if not isinstance(controller, Controller):
         raise ValueError(f"expected a Controller (softflow.load_controller); got {type(controller).__name__}")
     if controller.lean is None:
         raise ValueError(
             f"{controller.name} reads a window of {controller.model.context} past transitions: it has no "
             "one-transition step to export; plan it in Python (Controller.plan)"
-        )
-    if controller.model.needs_statics:
-        raise ValueError(
-            f"{controller.name} adds its output to a static prior found by iteratively inverting a table of "
-            "the rod's statics: the graph has no form of that inverse yet; Controller.step remains the path for it"
         )
     path = Path(path)
     if path.is_dir():
@@ -92,14 +89,27 @@ def _step_graph(controller: Controller) -> onnx.GraphProto:
     lean, dims = controller.lean, controller.model.dims
     g = _Graph()
     features = _features(g, lean)
+    prior = needs_table = None
+    if controller.statics_grid is not None:
+        prior, needs_table = _prior(g, controller.statics_grid, dims.position)
+        normalised = g.op(
+            "Div",
+            g.op("Sub", prior, g.constant("prior_norm.mean", lean.buffers["prior_norm.mean"]), out="prior.centred"),
+            g.constant("prior_norm.std", lean.buffers["prior_norm.std"]),
+            out="prior.normalised",
+        )
+        features = g.op("Concat", features, normalised, out="features_and_prior", axis=1)
     xi = _flow(g, lean, features) if controller.generative else _mlp(g, lean, features)
-    std, mean = (g.constant(f"action_norm.{k}", lean.buffers[f"action_norm.{k}"]) for k in ("std", "mean"))
-    u = g.op("Add", g.op("Mul", xi, std, out="u_normalised.scaled"), mean, out="u_unclipped")
+    target = "residual_norm" if lean.prior else "action_norm"
+    std, mean = (g.constant(f"{target}.{k}", lean.buffers[f"{target}.{k}"]) for k in ("std", "mean"))
+    u = g.op("Add", g.op("Mul", xi, std, out="u_normalised.scaled"), mean, out="u_model")
+    if prior is not None:
+        u = g.op("Add", u, prior, out="u_with_prior")
     low, high = (
         g.constant(name, b.astype(np.float32)) for name, b in zip(("input_low", "input_high"), controller.input_range)
     )
     g.op("Min", g.op("Max", u, low, out="u_above_low"), high, out="u")  # np.clip(u, low, high)
-    _outside(g, controller)
+    _outside(g, controller, needs_table)
     batch = lambda name, elem, *shape: helper.make_tensor_value_info(name, elem, ["batch", *shape])
     return helper.make_graph(
         g.nodes,
@@ -111,7 +121,7 @@ def _step_graph(controller: Controller) -> onnx.GraphProto:
 
 
 def _features(g: _Graph, lean) -> str:
-    """[x_t, x_next - x_t], each part normalised as ``LeanModel.features``: (B, 2d)."""
+    """[x_t, x_next - x_t], each part normalised by the model's trained normalisers: (B, 2d)."""
     g.op("Sub", "x_next", "x_t", out="delta")
     parts = [
         g.op(
@@ -123,6 +133,131 @@ def _features(g: _Graph, lean) -> str:
         for x, norm in (("x_t", "state_norm"), ("delta", "delta_norm"))
     ]
     return g.op("Concat", *parts, out="features", axis=1)
+
+
+def _prior(g: _Graph, grid, position: int) -> tuple[str, str]:
+    """``InverseGrid.inverse`` of x_next's tip position, in float64 as the step computes it: the
+    prior (B, m) float32, and (B,) bool where the step would solve it by the table instead."""
+    p = g.op(
+        "Cast",
+        g.op("Slice", "x_next", *_ints(g, "tip", [0], [position], [1]), out="tip"),
+        out="tip.f64",
+        to=TensorProto.DOUBLE,
+    )
+    x = g.op("Slice", p, *_ints(g, "axial", [0], [1], [1]), out="tip.x")  # (B, 1)
+    yz = g.op("Slice", p, *_ints(g, "lateral", [1], [3], [1]), out="tip.yz")  # (B, 2)
+    squares = g.op("ReduceSum", g.op("Mul", yz, yz, out="yz.squared"), _axis(g), out="lateral.squared", keepdims=1)
+    lateral = g.op("Sqrt", squares, out="lateral")
+    behind = g.op(
+        "Cast",
+        g.op("Less", x, g.constant("zero.f64", np.float64(0)), out="behind"),
+        out="behind.f64",
+        to=TensorProto.DOUBLE,
+    )
+    half_bend = g.op(  # atan2(lateral, x) for lateral >= 0: atan(lateral / x), plus pi behind the base
+        "Add",
+        g.op(  # in float32: onnxruntime has no float64 Atan (its 6e-8 moves the prior by 1e-7 N)
+            "Cast",
+            g.op(
+                "Atan",
+                g.op("Cast", g.op("Div", lateral, x, out="lateral_over_x"), out="ratio.f32", to=TensorProto.FLOAT),
+                out="atan.f32",
+            ),
+            out="atan",
+            to=TensorProto.DOUBLE,
+        ),
+        g.op("Mul", behind, g.constant("pi", np.float64(np.pi)), out="behind.pi"),
+        out="half_bend",
+    )
+    floor = g.op("Max", lateral, g.constant("tiny", np.float64(1e-300)), out="lateral.floored")
+    scale = g.op(
+        "Div",
+        g.op("Mul", half_bend, g.constant("arc_scale", np.float64(grid.arc_scale)), out="bend.scaled"),
+        floor,
+        out="arc.scale",
+    )
+    length = g.op("Sqrt", g.op("Add", g.op("Mul", x, x, out="x.squared"), squares, out="chord.squared"), out="chord")
+    coordinates = g.op("Concat", g.op("Mul", scale, yz, out="arc"), length, out="grid.coordinates", axis=1)
+    s = g.op(
+        "Div",
+        g.op("Sub", coordinates, g.constant("grid.low", grid.low), out="grid.offset"),
+        g.constant("grid.spacing", grid.spacing),
+        out="grid.units",
+    )
+    top = g.constant("grid.top_cell", (grid.shape - 2).astype(np.float64))
+    cell = g.op(
+        "Min",
+        g.op("Max", g.op("Floor", s, out="s.floor"), g.constant("zero3", np.zeros(3)), out="cell.above"),
+        top,
+        out="cell",
+    )
+    f = g.op("Sub", s, cell, out="cell.fraction")  # (B, 3)
+    index = g.op("Cast", cell, out="cell.int", to=TensorProto.INT64)
+
+    def flat(strides, name):
+        return g.op(
+            "ReduceSum",
+            g.op("Mul", index, g.constant(f"{name}.strides", strides), out=f"{name}.scaled"),
+            _axis(g),
+            out=name,
+            keepdims=1,
+        )  # (B, 1)
+
+    corners = g.op("Add", flat(grid.strides, "cell.node"), g.constant("cell.corners", grid.corners), out="corners")
+    values = g.op("Gather", g.constant("grid.u", grid.u), corners, out="corner.u", axis=0)  # (B, 8, 2)
+    for axis in range(3):  # 8 -> 4 -> 2 -> 1 corners, as InverseGrid.inverse
+        half = 8 >> (axis + 1)
+        low = g.op("Slice", values, *_ints(g, f"lerp{axis}.low", [0], [half], [1]), out=f"lerp{axis}.low")
+        high = g.op("Slice", values, *_ints(g, f"lerp{axis}.high", [half], [2 * half], [1]), out=f"lerp{axis}.high")
+        weight = g.op(
+            "Unsqueeze",
+            g.op("Slice", f, *_ints(g, f"lerp{axis}.f", [axis], [axis + 1], [1]), out=f"lerp{axis}.f"),
+            g.constant(f"lerp{axis}.axes", np.array([2])),
+            out=f"lerp{axis}.weight",
+        )  # (B, 1, 1)
+        step = g.op("Mul", weight, g.op("Sub", high, low, out=f"lerp{axis}.span"), out=f"lerp{axis}.step")
+        values = g.op("Add", low, step, out=f"lerp{axis}")
+    prior = g.op("Squeeze", values, g.constant("corner.axis", np.array([1])), out="prior.f64")
+    on_grid = g.op(
+        "And",
+        g.op("GreaterOrEqual", s, g.constant("zero3.grid", np.zeros(3)), out="grid.above_low"),
+        g.op("LessOrEqual", s, g.constant("grid.top", (grid.shape - 1).astype(np.float64)), out="grid.below_high"),
+        out="grid.inside_axes",
+    )
+    inside = g.op(
+        "ReduceMin",
+        g.op("Cast", on_grid, out="grid.inside.int", to=TensorProto.INT32),
+        out="grid.inside",
+        axes=[1],
+        keepdims=0,
+    )
+    kink = g.op(
+        "Gather",
+        g.constant("grid.kink", grid.kink),
+        g.op("Squeeze", flat(grid.cell_strides, "cell.index"), g.constant("cell.axis", np.array([1])), out="cell.flat"),
+        out="cell.kink",
+        axis=0,
+    )  # (B,)
+    needs_table = g.op(
+        "Or",
+        g.op("Not", g.op("Cast", inside, out="grid.inside.bool", to=TensorProto.BOOL), out="off_grid"),
+        kink,
+        out="needs_table",
+    )
+    return g.op("Cast", prior, out="prior", to=TensorProto.FLOAT), needs_table
+
+
+def _axis(g: _Graph) -> str:
+    """The axes input [1] of ReduceSum (an input, not an attribute, since opset 13)."""
+    return "axis1" if any(c.name == "axis1" for c in g.constants) else g.constant("axis1", np.array([1], np.int64))
+
+
+def _ints(g: _Graph, name: str, starts, ends, axes) -> list[str]:
+    """Slice's starts, ends and axes as int64 constants."""
+    return [
+        g.constant(f"{name}.{k}", np.array(v, np.int64))
+        for k, v in (("starts", starts), ("ends", ends), ("axes", axes))
+    ]
 
 
 def _layers(g: _Graph, lean, start: int) -> list[tuple[str, str]]:
@@ -167,7 +302,7 @@ def _flow(g: _Graph, lean, features: str) -> str:
     return xi
 
 
-def _outside(g: _Graph, controller: Controller) -> str:
+def _outside(g: _Graph, controller: Controller, needs_table: str | None = None) -> str:
     """(B,) bool: a value of x_t or x_next is not finite or, with a margin, a tip position lies
     beyond it. Compared in float64, as ``step`` compares, so a state at the margin is judged alike."""
     states = g.op("Concat", "x_t", "x_next", out="states", axis=1)  # (B, 2d)
@@ -184,7 +319,10 @@ def _outside(g: _Graph, controller: Controller) -> str:
         ok = g.op("Concat", ok, within, out="ok", axis=1)
     refused = g.op("Cast", g.op("Not", ok, out="refused"), out="refused.int", to=TensorProto.INT32)
     any_refused = g.op("ReduceMax", refused, out="refused.any", axes=[1], keepdims=0)
-    return g.op("Cast", any_refused, out="outside", to=TensorProto.BOOL)
+    if needs_table is None:
+        return g.op("Cast", any_refused, out="outside", to=TensorProto.BOOL)
+    refused = g.op("Cast", any_refused, out="refused.bool", to=TensorProto.BOOL)
+    return g.op("Or", refused, needs_table, out="outside")
 
 
 def _metadata(controller: Controller) -> dict[str, str]:

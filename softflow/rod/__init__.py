@@ -19,6 +19,7 @@ EXPORTS = {
         "inverse_static",
         "static_lift",
         "StaticTable",
+        "InverseGrid",
     ],
     "kinematics": ["rowwise", "RodKinematics"],
     "cables": ["cable_directions", "cable_tensions", "cable_actuation", "cable_displacements"],

@@ -374,8 +374,7 @@ class InverseGrid:
 
     def inverse(self, p) -> np.ndarray:
         """u (B, 2) for tip positions p (B, 3), as ``StaticTable.inverse`` to 1e-3 N."""
-        s = (self.coordinates(p) - self.low) / self.spacing  # (B, 3) in grid units
-        cell = np.minimum(np.maximum(s, 0).astype(np.int64), self.shape - 2)  # (B, 3); the top face joins the last
+        s, cell, exact = self._locate(p)
         f = s - cell  # (B, 3) in [0, 1] inside the grid
         corners = self.u[(cell @ self.strides)[:, None] + self.corners]  # (B, 8, 2)
         for axis in range(3):  # halve the corners along each axis in turn: 8 -> 4 -> 2 -> 1
@@ -383,10 +382,21 @@ class InverseGrid:
             low, high = corners[:, :half], corners[:, half : 2 * half]
             corners = low + f[:, axis, None, None] * (high - low)
         u = corners[:, 0]
-        exact = ~((s >= 0) & (s <= self.shape - 1)).all(-1) | self.kink[cell @ self.cell_strides]
         if exact.any():
             u[exact] = self.table.inverse(p[exact])
         return u
+
+    def solved_by_table(self, p) -> np.ndarray:
+        """(B,) bool: the points p (B, 3) that ``inverse`` hands to the table (off the grid, or in
+        a cell with a clipped corner)."""
+        return self._locate(p)[2]
+
+    def _locate(self, p):
+        """Grid units s (B, 3), the cell (B, 3) int and whether the table solves the point (B,)."""
+        s = (self.coordinates(p) - self.low) / self.spacing
+        cell = np.minimum(np.maximum(s, 0).astype(np.int64), self.shape - 2)  # the top face joins the last cell
+        exact = ~((s >= 0) & (s <= self.shape - 1)).all(-1) | self.kink[cell @ self.cell_strides]
+        return s, cell, exact
 
     def coordinates(self, p) -> np.ndarray:
         """(arc actuation (2), chord length) (B, 3) of tip points p (B, 3): ``arc_actuation`` with the
