@@ -92,12 +92,7 @@ def _step_graph(controller: Controller) -> onnx.GraphProto:
     prior = needs_table = None
     if controller.statics_grid is not None:
         prior, needs_table = _prior(g, controller.statics_grid, dims.position)
-        normalised = g.op(
-            "Div",
-            g.op("Sub", prior, g.constant("prior_norm.mean", lean.buffers["prior_norm.mean"]), out="prior.centred"),
-            g.constant("prior_norm.std", lean.buffers["prior_norm.std"]),
-            out="prior.normalised",
-        )
+        normalised = _normalised(g, lean, prior, "prior_norm")
         features = g.op("Concat", features, normalised, out="features_and_prior", axis=1)
     xi = _flow(g, lean, features) if controller.generative else _mlp(g, lean, features)
     target = "residual_norm" if lean.prior else "action_norm"
@@ -123,16 +118,14 @@ def _step_graph(controller: Controller) -> onnx.GraphProto:
 def _features(g: _Graph, lean) -> str:
     """[x_t, x_next - x_t], each part normalised by the model's trained normalisers: (B, 2d)."""
     g.op("Sub", "x_next", "x_t", out="delta")
-    parts = [
-        g.op(
-            "Div",
-            g.op("Sub", x, g.constant(f"{norm}.mean", lean.buffers[f"{norm}.mean"]), out=f"{x}.centred"),
-            g.constant(f"{norm}.std", lean.buffers[f"{norm}.std"]),
-            out=f"{x}.normalised",
-        )
-        for x, norm in (("x_t", "state_norm"), ("delta", "delta_norm"))
-    ]
+    parts = [_normalised(g, lean, x, norm) for x, norm in (("x_t", "state_norm"), ("delta", "delta_norm"))]
     return g.op("Concat", *parts, out="features", axis=1)
+
+
+def _normalised(g: _Graph, lean, x: str, norm: str) -> str:
+    """(x - mean) / std with the model's trained normaliser ``norm``."""
+    centred = g.op("Sub", x, g.constant(f"{norm}.mean", lean.buffers[f"{norm}.mean"]), out=f"{x}.centred")
+    return g.op("Div", centred, g.constant(f"{norm}.std", lean.buffers[f"{norm}.std"]), out=f"{x}.normalised")
 
 
 def _prior(g: _Graph, grid, position: int) -> tuple[str, str]:
@@ -146,7 +139,8 @@ def _prior(g: _Graph, grid, position: int) -> tuple[str, str]:
     )
     x = g.op("Slice", p, *_ints(g, "axial", [0], [1], [1]), out="tip.x")  # (B, 1)
     yz = g.op("Slice", p, *_ints(g, "lateral", [1], [3], [1]), out="tip.yz")  # (B, 2)
-    squares = g.op("ReduceSum", g.op("Mul", yz, yz, out="yz.squared"), _axis(g), out="lateral.squared", keepdims=1)
+    axis1 = g.constant("axis1", np.array([1], np.int64))  # ReduceSum's axes: an input since opset 13
+    squares = g.op("ReduceSum", g.op("Mul", yz, yz, out="yz.squared"), axis1, out="lateral.squared", keepdims=1)
     lateral = g.op("Sqrt", squares, out="lateral")
     behind = g.op(
         "Cast",
@@ -198,7 +192,7 @@ def _prior(g: _Graph, grid, position: int) -> tuple[str, str]:
         return g.op(
             "ReduceSum",
             g.op("Mul", index, g.constant(f"{name}.strides", strides), out=f"{name}.scaled"),
-            _axis(g),
+            axis1,
             out=name,
             keepdims=1,
         )  # (B, 1)
@@ -245,11 +239,6 @@ def _prior(g: _Graph, grid, position: int) -> tuple[str, str]:
         out="needs_table",
     )
     return g.op("Cast", prior, out="prior", to=TensorProto.FLOAT), needs_table
-
-
-def _axis(g: _Graph) -> str:
-    """The axes input [1] of ReduceSum (an input, not an attribute, since opset 13)."""
-    return "axis1" if any(c.name == "axis1" for c in g.constants) else g.constant("axis1", np.array([1], np.int64))
 
 
 def _ints(g: _Graph, name: str, starts, ends, axes) -> list[str]:

@@ -140,7 +140,7 @@ class Controller:
         """``n`` draws of u_t for one transition, (d,), (d,) -> (n, m), or a batch, -> (n, B, m): the
         flow's uncertainty about this step, from independent noise z (numpy's normal; ``seed``
         None: the controller's own generator, so each call draws afresh), not clipped. The draws
-        go through the sampler as one batch: 16 of them cost about 1.5 one step (``make bench``)."""
+        go through the sampler as one batch (``make bench`` times 16 of them against the step)."""
         if not (isinstance(n, int) and n >= 1):
             raise ValueError(f"n must be a positive integer; got {n!r}")
         if not self.generative:

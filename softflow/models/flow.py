@@ -123,24 +123,11 @@ class MeanFlow(RectifiedFlow):
     step of any length lands where the flow would, xi_{s+h} = xi_s + h u. Trained through the
     identity u = v + h du/ds (the derivative along the path at fixed end s + h: one
     Jacobian-vector product), with h = 0, plain flow matching, on the rest of the pairs.
-    ``steps`` = 1 samples xi = z + u(z, 0, 1), the transport in one call; the sources and every
-    choice are in docs/assumptions.md ("One-step flows")."""
+    ``steps`` = 1 (the registry's rf-1 and rf-fwd-1) samples xi = z + u(z, 0, 1), the transport in
+    one call; the sources and every choice are in docs/assumptions.md ("One-step flows")."""
 
     times = 2  # tau and the span h
     SPANNED = 0.25  # share of training pairs with a span h > 0 (the reference's default)
-
-    def __init__(
-        self,
-        hidden: int = 256,
-        layers: int = 3,
-        steps: int = 1,
-        tau_sampling: str = "logit-normal",
-        prior: bool = False,
-        consistency: float = 0.0,
-        *,
-        dims: Dims = PAPER_DIMS,
-    ):
-        super().__init__(hidden, layers, steps, tau_sampling, prior, consistency, dims=dims)
 
     def velocity(self, xi, tau, condition):
         return self.mean_velocity(xi, tau, torch.zeros_like(tau), condition)

@@ -35,8 +35,8 @@ MODELS = {
     "rf": ModelSpec(RectifiedFlow),
     "rf-physical": ModelSpec(RectifiedFlow, {"prior": True}),
     "rf-fwd": ModelSpec(RectifiedFlow, {"consistency": 1.0}, requires=("forward",)),
-    "rf-1": ModelSpec(MeanFlow),
-    "rf-fwd-1": ModelSpec(MeanFlow, {"consistency": 1.0}, requires=("forward",)),
+    "rf-1": ModelSpec(MeanFlow, {"steps": 1}),
+    "rf-fwd-1": ModelSpec(MeanFlow, {"steps": 1, "consistency": 1.0}, requires=("forward",)),
 }
 # What load_controller loads: every inverse model, not RF-FWD's forward surrogate.
 CONTROLLERS = tuple(name for name, spec in MODELS.items() if spec.cls is not ForwardModel)
