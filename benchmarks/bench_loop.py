@@ -7,8 +7,11 @@ held-out episode, simulated ahead and replayed (one simulated step costs about 1
 than the period; a learned surrogate fed back into the inverse model drifts out of the
 workspace within a second), so every state is the rod's and the period's work is the
 controller's. The episode restarts every 500 periods. The loop runs for ``--seconds`` per
-model, once with the cores idle and once beside a process that keeps one core busy, with
-Python's garbage collector on (a user's default).
+model, with Python's garbage collector on (a user's default): with the cores idle, waiting for
+each period by sleeping (a user's default); with the cores idle, spinning through the wait (a
+controller on a core of its own: the core never idles, so its caches and clock stay warm, and
+the step costs what the planning benchmark measures); and sleeping beside a process that keeps
+one core busy.
 
 Reports per run: step latency (the call alone) and the period's work (state, step, send)
 at p50 / p99 / p99.9 and their maximum, deadline misses (a period whose work exceeded 1 ms),
@@ -35,9 +38,13 @@ PERIOD = 1e-3  # s
 SPIN = 2e-4  # s before a deadline the loop stops sleeping and spins, for a punctual start
 
 
-def run_loop(controller, plant, seconds: float) -> dict:
-    """The loop for ``seconds`` on the plant's states (T+1, d): latencies (s) of each period's
-    step and work, and the count of late starts."""
+CONDITIONS = {"idle": (False, SPIN), "idle_spinning": (False, PERIOD), "one_core_busy": (True, SPIN)}  # busy, spin
+
+
+def run_loop(controller, plant, seconds: float, spin: float = SPIN) -> dict:
+    """The loop for ``seconds`` on the plant's states (T+1, d), sleeping until ``spin`` seconds
+    before each deadline and spinning from there: latencies (s) of each period's step and
+    work, and the count of late starts."""
     n = int(round(seconds / PERIOD))
     steps, works, late = np.empty(n), np.empty(n), 0
     T = len(plant) - 1
@@ -47,8 +54,8 @@ def run_loop(controller, plant, seconds: float) -> dict:
     for k in range(n):
         deadline = start + k * PERIOD
         while (now := time.perf_counter()) < deadline:
-            if deadline - now > SPIN:
-                time.sleep(deadline - now - SPIN)
+            if deadline - now > spin:
+                time.sleep(deadline - now - spin)
         late += now - deadline > PERIOD
         t = k % T
         x_t = plant[t]
@@ -79,24 +86,22 @@ def summary(run: dict) -> dict:
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--profile", default="ci")
-    parser.add_argument("--models", default="mlp,rf-fwd,rf-physical,rf-1")
+    parser.add_argument("--models", default="mlp,rf-fwd,rf-physical,rf-1,rf-fwd-1")
     parser.add_argument("--seconds", type=float, default=60.0)
     args = parser.parse_args()
     profile = get_profile(args.profile)
     dataset = data.load_dataset(profile, progress=False)
     plant = dataset.states[dataset.test[0]]  # (501, 6): the simulated rod on a held-out episode
     results = {}
-    for condition in ("idle", "one_core_busy"):
-        busy = None
-        if condition == "one_core_busy":
-            busy = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+    for condition, (loaded, spin) in CONDITIONS.items():
+        busy = subprocess.Popen([sys.executable, "-c", "while True: pass"]) if loaded else None
         try:
             for name in args.models.split(","):
                 controller = control.Controller(training.ensure_trained(name, profile, dataset)[0], name)
-                run_loop(controller, plant, 1.0)  # warm-up: caches, the grid, the allocator
-                results[f"{condition}.{name}"] = row = summary(run_loop(controller, plant, args.seconds))
+                run_loop(controller, plant, 1.0, spin)  # warm-up: caches, the grid, the allocator
+                results[f"{condition}.{name}"] = row = summary(run_loop(controller, plant, args.seconds, spin))
                 print(
-                    f"{condition:13s} {name:12s} step p50 {row['step_ms']['p50']:.3f} ms, "
+                    f"{condition:14s} {name:12s} step p50 {row['step_ms']['p50']:.3f} ms, "
                     f"p99 {row['step_ms']['p99']:.3f}, p99.9 {row['step_ms']['p99.9']:.3f}, "
                     f"max {row['step_ms']['max']:.3f}; work p99.9 "
                     f"{row['work_ms']['p99.9']:.3f} ms; deadline misses {row['deadline_misses']} of {row['periods']}, "

@@ -41,3 +41,41 @@ def test_the_words_are_the_verdict_tables_words():
     assert [w["verdict"] for w in words] == ["RF lower (not after Holm)", "no ranking"]
     assert (words[0]["mm"], words[0]["interval"]) == ("-1.23", "[-2.00, -0.50]")
     assert (words[1]["best_rf"], words[1]["best_baseline"]) == ("RF-FWD", "LSTM")
+
+
+def test_the_committed_speed_block_is_what_the_bench_csvs_make():
+    text = (REPO / "README.md").read_text()
+    block = readme.speed_block(REPO / "figures" / "bench")
+    assert readme.with_block(text, block, readme.SPEED_BEGIN, readme.SPEED_END) == text, (
+        "README.md's speed block is stale: run `make readme`"
+    )
+
+
+def _bench_csv(path, quantities: dict) -> None:
+    pd.DataFrame(
+        dict(quantity=list(quantities), value=list(quantities.values()), machine="a test machine", date="-", commit="-")
+    ).to_csv(path, index=False)
+
+
+def test_the_speed_words_follow_the_measured_medians(tmp_path):
+    """A model whose median step is above the target is named above it, one at or below below it,
+    whatever the table's order; a loop file whose runs differ in length is refused."""
+    planning = {}
+    for name in readme.SPEED_MODELS:
+        median = 0.04 if name == "rf-physical" else 0.06
+        planning |= {f"step.{name}.step_ms.median": median, f"step.{name}.step_ms.p99": 0.2}
+        planning |= {f"step.{name}.onnx_ms.median": 0.03}
+    _bench_csv(tmp_path / "planning.csv", planning)
+
+    def loop_run(name, periods):
+        return {f"idle.{name}.step_ms.{q}": 0.1 for q in ("p50", "p99.9")} | {
+            f"idle.{name}.periods": periods,
+            f"idle.{name}.deadline_misses": 0,
+        }
+
+    _bench_csv(tmp_path / "loop.csv", loop_run("mlp", 2000))
+    words = " ".join(readme.speed_block(tmp_path).split())
+    assert "At most 0.05 ms median: RF-Physical (4 Euler steps); above it: MLP, RF (4 Euler steps)," in words
+    _bench_csv(tmp_path / "loop.csv", loop_run("mlp", 2000) | loop_run("rf", 1000))
+    with pytest.raises(ValueError, match="differ in length"):
+        readme.speed_block(tmp_path)

@@ -32,6 +32,8 @@ LABELS = {
     "rf": "RF",
     "rf-physical": "RF-Physical",
     "rf-fwd": "RF-FWD",
+    "rf-1": "RF-1",
+    "rf-fwd-1": "RF-FWD-1",
     "mlp-physical": "MLP-Physical",
     FLOOR: "ILC floor (true simulator)",
 }
