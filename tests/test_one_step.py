@@ -5,6 +5,7 @@ the tip-alone win is a verdict of the two intervals and Holm."""
 import numpy as np
 import pandas as pd
 
+from softflow.report import readme
 from softflow.studies import one_step
 
 
@@ -61,3 +62,16 @@ def test_the_grid_is_the_registered_one():
     assert len(paper) == 2 * 5 * 3  # two rods, five models, three seeds
     assert {c["model"] for c in paper} == set(one_step.PLANS)
     assert {(c["rod"], c["model"]) for c in one_step.cells("ci")} == {("paper", m) for m in ("mlp", "rf", "rf-1")}
+
+
+def test_the_readme_states_each_rules_words():
+    """The README's one-step sentence quotes every comparison with its own words and interval."""
+    made = rows({("mlp", 0): 1.0, ("rf", 4): 0.8, ("rf", 1): 1.0, ("rf-1", 1): 0.82, ("rf-fwd-1", 1): 1.0})
+    said = readme._one_step(
+        made.assign(key=made["model"] + made["plan_steps"].astype(str) + made["seed"].astype(str)), 30
+    )
+    assert (said["computed"], said["cells"]) == (15, 30)  # 5 plans x 3 seeds, as keys
+    assert [(d["model"], d["words"]) for d in said["parity"]] == [("rf-1@1", "within")]
+    assert said["parity"][0]["ratio"] == "1.02x" and said["parity"][0]["interval"].startswith("[")
+    assert [(d["model"], d["words"]) for d in said["collapse"]] == [("rf@1", "within")]
+    assert {d["model"]: d["verdict"] for d in said["tip_win"]} == {"rf-1@1": "rf-1@1 lower", "rf-fwd-1@1": "no ranking"}

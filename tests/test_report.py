@@ -511,6 +511,7 @@ def test_results_page_holds_every_table_and_section_and_only_existing_figures(pr
         "## A two-segment rod: four inputs, one tip (notebook 12)",
         "## Learning from recorded runs (notebook 13)",
         "## A real robot: the ASL trunk (notebook 14)",
+        "## A flow in one step (notebook 15)",
         "## Numbers across CPUs",
         "## The paper's claims, reproduced or not",
         "## Design choices",

@@ -96,9 +96,11 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
 
 
 def summarise(rows: pd.DataFrame) -> dict[str, pd.DataFrame]:
-    """The study's three tables from its rows (columns rod, model, seed, plan_steps, reference,
-    family, rmse_mm): "parity" (rule 1), "tip_win" (rule 2, one Holm family) and "collapse"
-    (rule 3), one row per comparison with its interval(s) and its words."""
+    """The study's tables from its rows (columns rod, model, seed, plan_steps, reference, family,
+    rmse_mm): "rmse", each plan's mean tracking RMSE (``model@steps``; the MLP's @0) with its
+    bootstrap interval over seeds and references; "parity" (rule 1), "tip_win" (rule 2, one
+    Holm family) and "collapse" (rule 3), one row per comparison with its interval(s) and its
+    words."""
     plans = rows.assign(model=rows["model"] + "@" + rows["plan_steps"].astype(str))
     parity, win, collapse = [], [], []
     for (rod, family), part in plans.groupby(["rod", "family"], sort=False):
@@ -128,7 +130,8 @@ def summarise(rows: pd.DataFrame) -> dict[str, pd.DataFrame]:
     win = pd.DataFrame(win)
     if len(win):
         win = stats.family_verdicts(win, lambda index, row: (row["model"], row["other"]))
-    return dict(parity=pd.DataFrame(parity), tip_win=win, collapse=pd.DataFrame(collapse))
+    rmse = stats.summarise(plans, "rmse_mm", by=("rod", "family", "model"))
+    return dict(rmse=rmse, parity=pd.DataFrame(parity), tip_win=win, collapse=pd.DataFrame(collapse))
 
 
 def _ratio_row(rod: str, family: str, model: str, other: str, interval: stats.Interval) -> dict:
