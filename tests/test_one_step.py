@@ -71,7 +71,6 @@ def test_the_readme_states_each_rules_words():
         made.assign(key=made["model"] + made["plan_steps"].astype(str) + made["seed"].astype(str)), 30
     )
     assert (said["computed"], said["cells"]) == (15, 30)  # 5 plans x 3 seeds, as keys
-    assert [(d["model"], d["words"]) for d in said["parity"]] == [("rf-1@1", "within")]
-    assert said["parity"][0]["ratio"] == "1.02x" and said["parity"][0]["interval"].startswith("[")
-    assert [(d["model"], d["words"]) for d in said["collapse"]] == [("rf@1", "within")]
+    assert said["parity"] == dict(range="1.02x", tally="within in 1 of 1", comparisons=1)
+    assert said["collapse"]["tally"] == "within in 1 of 1" and said["collapse"]["comparisons"] == 1
     assert {d["model"]: d["verdict"] for d in said["tip_win"]} == {"rf-1@1": "rf-1@1 lower", "rf-fwd-1@1": "no ranking"}

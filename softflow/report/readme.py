@@ -121,17 +121,9 @@ def _recorded(rows: pd.DataFrame) -> dict:
         needed_verdicts=needed.verdict.value_counts(sort=False).to_dict(),
         bootstrap_below=int((needed.high < 0).sum()),
         t_below=int((needed.t_high < 0).sum()),
-        best=[
-            dict(
-                gravity=gravity,
-                gap=gap,
-                best_rf=LABELS[row.best_rf],
-                best_baseline=LABELS[row.best_baseline],
-                friction_changes=row.friction_changes,
-                **_difference(row),
-            )
-            for (gravity, gap), row in best.iterrows()
-        ],
+        best_range=_range(best.difference_mm, "{:+.2f}"),
+        best_tally=_tally(best.verdict),
+        best=[dict(gravity=gravity, friction_changes=row.friction_changes) for (gravity, _), row in best.iterrows()],
     )
 
 
@@ -151,15 +143,9 @@ def _trunk(rows: pd.DataFrame, cells: int) -> dict:
         computed=int(rows["key"].nunique()) if len(rows) else 0,
         cells=cells,
         answer=trunk.ANSWERS[trunk.notebook_12_answer(rule)] if len(rule) else None,
-        rule=[
-            dict(
-                observation=row.observation,
-                family=row.family,
-                best_flow=LABELS.get(row.best_flow, row.best_flow),
-                best_baseline=LABELS.get(row.best_baseline, row.best_baseline),
-                **_difference(row),
-            )
-            for _, row in rule.iterrows()
+        observations=[
+            dict(observation=observation, range=_range(part.difference_mm, "{:+.2f}"), tally=_tally(part.verdict))
+            for observation, part in (rule.groupby("observation", sort=False) if len(rule) else ())
         ],
         spread={observation: f"{ratio:.1f}" for observation, ratio in spread["spread / floor"].items()}
         if len(spread)
@@ -167,16 +153,28 @@ def _trunk(rows: pd.DataFrame, cells: int) -> dict:
     )
 
 
+def _range(values: pd.Series, form: str) -> str:
+    """ "a to b" over ``values`` in ``form`` (one value: itself)."""
+    low, high = form.format(values.min()), form.format(values.max())
+    return low if low == high else f"{low} to {high}"
+
+
+def _tally(words: pd.Series) -> str:
+    """How often each verdict's words occur, most often first: "no ranking in 3 of 4, ..."."""
+    counts = words.value_counts()
+    return ", ".join(f"{word} in {n} of {len(words)}" for word, n in counts.items())
+
+
 def _one_step(rows: pd.DataFrame, cells: int) -> dict:
     """The one-step study's rules as far as its cells are computed (``one_step.summarise``)."""
     tables = one_step.summarise(rows)
 
-    def ratios(table: pd.DataFrame) -> list[dict]:
-        return [
-            dict(model=row.model, other=row.other, rod=row.rod, family=row.family, ratio=f"{row.ratio:.2f}x")
-            | dict(interval=f"[{row.low:.2f}, {row.high:.2f}]", words=row.within_10_percent)
-            for row in table.itertuples()
-        ]
+    def ratios(table: pd.DataFrame) -> dict:
+        if table.empty:
+            return dict(range="no comparison yet", tally="none", comparisons=0)
+        return dict(
+            range=f"{_range(table.ratio, '{:.2f}')}x", tally=_tally(table.within_10_percent), comparisons=len(table)
+        )
 
     win = tables["tip_win"]
     return dict(
