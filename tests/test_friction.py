@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from softflow import hardware
-from softflow.hardware.twin import CablePlant
+from softflow.hardware.plant import CablePlant
 from softflow.rod.cables import cable_actuation
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import DT, HW_ROBOT, TWO_SEGMENT_ROD

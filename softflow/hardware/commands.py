@@ -1,4 +1,15 @@
-"""Command files (CSV, for a motor controller replaying at 100 Hz): header
+"""Motor commands: made from planned tensions through the model rod, and written to and read
+from the files a motor controller replays.
+
+The model is driven by differential tensions u, the robot by motors that hold cable
+positions, so commands are made *through the model*: the tension-driven twin's rod shape
+gives each cable's path-length change Delta_c(q) (``cables.cable_displacements``), and a
+cable of stiffness k carries k (l_c + Delta_c(q)) when its motor has pulled in l_c. To
+produce the planned tensions T_c(u) (u split over the cables above a pretension,
+``cables.cable_tensions``) the motor pulls in l_c = T_c / k - Delta_c(q), with Delta_c
+averaged over the control step (``cable_commands`` for a plan, ``StepCommands`` for a loop).
+
+Command files (CSV, for a motor controller replaying at 100 Hz): header
 ``time_s,l1_mm,l2_mm,l3_mm``, one row per 0.01 s; l_c is the cable length pulled in by
 motor c (mm) relative to the slack-free straight rod; cables in the order of
 ``robot.cable_angles`` (cable 1 at +y, then 120 degree steps towards +z).
@@ -16,8 +27,67 @@ import pandas as pd
 
 from softflow.checks import as_real_array
 from softflow.hardware import vision
+from softflow.rod.cables import cable_displacements, cable_tensions
+from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import DT
 from softflow.store import write_text
+
+CABLE_STIFFNESS = 1000.0  # N/m, line + guides + motor mount in series (assumed; docs/assumptions.md)
+PRETENSION = 1.0  # N, the slackest cable's tension: keeps every cable taut
+
+
+def cable_commands(
+    u, sim: Simulator, stiffness: float = CABLE_STIFFNESS, pretension: float = PRETENSION, lead: float = 0.0
+):
+    """Planned actuation (B, T, 2) -> motor commands (B, T, C) in m, through the tension-driven
+    model ``sim`` (the rod shape it predicts for the plan). ``lead`` (s): each command leads
+    by that much of its rate of change, undoing a motor lag of that time constant."""
+    u, _ = as_real_array(u, "u", (None, None, 2))
+    _check_cables(stiffness, lead)
+    B, T, _ = u.shape
+    q, _ = sim.integrate(u, sim.rest_q(), np.zeros(sim.nq))
+    delta = cable_displacements(sim.bend_angles(q.reshape(-1, sim.nq)), sim.robot).reshape(B, T + 1, -1)
+    tensions = cable_tensions(u.reshape(-1, 2), sim.robot, pretension).reshape(B, T, -1)
+    commands = tensions / stiffness - 0.5 * (delta[:, :-1] + delta[:, 1:])
+    rest = np.broadcast_to(rest_command(sim, stiffness, pretension), (B, 1, commands.shape[2]))
+    return commands + lead / DT * np.diff(commands, axis=1, prepend=rest)
+
+
+def rest_command(sim: Simulator, stiffness: float = CABLE_STIFFNESS, pretension: float = PRETENSION) -> np.ndarray:
+    """The motor commands (C,) in m that hold ``sim``'s rod at rest with every cable at its pretension."""
+    return pretension / stiffness - cable_displacements(sim.bend_angles(sim.rest_q()[None]), sim.robot)[0]
+
+
+def _check_cables(stiffness: float, lead: float):
+    if not stiffness > 0:
+        raise ValueError(f"stiffness must be positive; got {stiffness!r}")
+    if not (np.isfinite(lead) and lead >= 0):
+        raise ValueError(f"lead must be a finite time >= 0 s; got {lead!r}")
+
+
+class StepCommands:
+    """Motor commands one control step at a time, for a loop: ``commands(u)`` (2,) -> (C,) in
+    m, through the model rod ``sim`` integrated alongside, exactly as ``cable_commands`` turns
+    a whole plan (the cable path change averaged over the step, the same ``lead``)."""
+
+    def __init__(
+        self, sim: Simulator, stiffness: float = CABLE_STIFFNESS, pretension: float = PRETENSION, lead: float = 0.0
+    ):
+        _check_cables(stiffness, lead)
+        self.sim, self.stiffness, self.pretension, self.lead = sim, stiffness, pretension, lead
+        self.q, self.qd = sim.rest_q()[None], np.zeros((1, sim.nq))
+        self.last = rest_command(sim, stiffness, pretension)
+
+    def __call__(self, u) -> np.ndarray:
+        u, _ = as_real_array(np.reshape(u, (1, 1, 2)), "u", (1, 1, 2))
+        q, qd = self.sim.integrate(u, self.q, self.qd)
+        delta = cable_displacements(self.sim.bend_angles(q[0]), self.sim.robot)  # (2, C): the step's ends
+        self.q, self.qd = q[:, -1], qd[:, -1]
+        command = cable_tensions(u[0], self.sim.robot, self.pretension)[0] / self.stiffness - 0.5 * (
+            delta[0] + delta[1]
+        )
+        led, self.last = command + self.lead / DT * (command - self.last), command
+        return led
 
 
 def write_commands(path, commands, dt: float = DT):

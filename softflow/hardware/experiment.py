@@ -13,16 +13,10 @@ from softflow.checks import as_real_array, check_choice
 from softflow.control.closed_loop import PI, learn_by_repetition
 from softflow.control.metrics import peak_speed, tracking_rmse
 from softflow.control.planning import pad_plans, plan_all
-from softflow.hardware.commands import write_commands
-from softflow.hardware.twin import (
-    CablePlant,
-    RealityGap,
-    TwinRig,
-    cable_commands,
-    observe_run,
-    tracked_rmse,
-    twin_camera,
-)
+from softflow.hardware.commands import cable_commands, write_commands
+from softflow.hardware.gap import RealityGap
+from softflow.hardware.plant import CablePlant
+from softflow.hardware.twin import TwinRig, observe_run, tracked_rmse, twin_camera
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import U_MAX
 

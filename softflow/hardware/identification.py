@@ -17,7 +17,10 @@ from scipy.optimize import least_squares
 
 from softflow.checks import as_real_array
 from softflow.data.excitation import sum_of_sines_excitation
-from softflow.hardware.twin import CablePlant, RealityGap, cable_commands, observe_run, twin_camera
+from softflow.hardware.commands import cable_commands
+from softflow.hardware.gap import RealityGap
+from softflow.hardware.plant import CablePlant
+from softflow.hardware.twin import observe_run, twin_camera
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import DT
 

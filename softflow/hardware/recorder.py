@@ -3,7 +3,7 @@
 
 Each run: a random polynomial u (``data.excitation.polynomial_excitation``, the training
 family, one draw per run seeded by (seed, run)) is made into motor commands through the model
-rod (``twin.cable_commands``, as the replay makes them), replayed from rest on the plant across
+rod (``commands.cable_commands``, as the replay makes them), replayed from rest on the plant across
 the gap (cable friction by default) and filmed by the twin's camera: every frame rendered and
 its marker tracked (``twin.observe_run``, the open-loop replay's camera), at 30 fps. Frames
 are stamped ``latency`` s after they were taken (0: a camera that stamps frames when taken); a
@@ -36,7 +36,10 @@ from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from softflow.data.excitation import polynomial_excitation
-from softflow.hardware.twin import FRICTION_GAP, CablePlant, RealityGap, cable_commands, observe_run, twin_camera
+from softflow.hardware.commands import cable_commands
+from softflow.hardware.gap import FRICTION_GAP, RealityGap
+from softflow.hardware.plant import CablePlant
+from softflow.hardware.twin import observe_run, twin_camera
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import DT, HW_ROBOT, Robot
 from softflow.store import write_text

@@ -754,7 +754,7 @@ def recording(frames_time, frames_tip, smoothed, column: int = 1):
 
 @_styled
 def hysteresis(loops: dict):
-    """Hysteresis loops of the twin (``loops``: {friction coefficient: twin.HysteresisLoop}): the
+    """Hysteresis loops of the twin (``loops``: {friction coefficient: hysteresis.HysteresisLoop}): the
     lateral tip against u1 along the slower cycle's down (solid) and up (dashed) branches (left),
     and the gap between the branches once rate effects are removed, in % of the reach (right)."""
     fig, (ax_loop, ax_gap) = plt.subplots(1, 2, figsize=(9.0, 3.2))

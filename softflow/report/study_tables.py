@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 
 from softflow.data import OBSERVATIONS
-from softflow.hardware.twin import GAP_TERMS
+from softflow.hardware.gap import GAP_TERMS
 from softflow.report.tables import BASELINES, LABELS, MODELS, RF_FAMILY
 from softflow.studies import stats
 from softflow.studies.closed_loop import CAMERA_LATENCY
