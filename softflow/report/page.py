@@ -27,7 +27,16 @@ from softflow.report.study_tables import (
     two_segment_differences,
     verdict_counts,
 )
-from softflow.report.tables import BASELINES, LABELS, RF_FAMILY, markdown, our_table, read_result, read_sweep
+from softflow.report.tables import (
+    BASELINES,
+    LABELS,
+    RF_FAMILY,
+    computed_rows,
+    markdown,
+    our_table,
+    read_result,
+    read_sweep,
+)
 from softflow.studies import one_step, stats, trunk
 from softflow.studies.recorded import RECORDED
 from softflow.studies.recorded import cells as recorded_cells
@@ -175,7 +184,7 @@ def ranking_rule_section(profile: Profile) -> list[str]:
     ranks beside the bootstrap alone (notebooks 08, 09, 11)."""
     tables = {
         "table1": best_against_best(read_sweep(profile, "table1")),
-        "ambiguity": regime_map(_regime_rows(profile)),
+        "ambiguity": regime_map(regime_map_rows(profile)),
         "data_size": size_effects(read_sweep(profile, "data_size")),
         "fwd_lambda": lambda_decision(read_sweep(profile, "fwd_lambda"))[0],
     }
@@ -341,24 +350,16 @@ def _family_differences(frame: pd.DataFrame) -> dict:
     }
 
 
-def _regime_rows(profile: Profile) -> pd.DataFrame:
+def regime_map_rows(profile: Profile) -> pd.DataFrame:
     """The ambiguity study's rows and, as far as they are computed, the two_segment study's as two
     more variants of the regime map (``two_segment_variants``)."""
-    return regime_rows(read_sweep(profile, "ambiguity"), _two_segment_rows(profile))
-
-
-def _two_segment_rows(profile: Profile) -> pd.DataFrame:
-    """The two_segment study's rows as far as they are computed (none: an empty frame)."""
-    try:
-        return read_sweep(profile, "two_segment")
-    except ValueError:  # not run in this profile yet
-        return pd.DataFrame(columns=["key"])
+    return regime_rows(read_sweep(profile, "ambiguity"), computed_rows(profile, "two_segment"))
 
 
 def where_flows_win_section(profile: Profile) -> list[str]:
     """The regime map with its paragraph, and what the prior and being generative each change
     with data size (notebook 09)."""
-    regimes = regime_map(_regime_rows(profile))
+    regimes = regime_map(regime_map_rows(profile))
     table = pd.DataFrame(
         {
             "spread / floor (N)": [
@@ -531,7 +532,7 @@ def two_segment_summary(differences: pd.DataFrame, computed: int, cells: int | N
 def two_segment_section(profile: Profile) -> list[str]:
     """The redundant rod (notebook 12): whether the RF family beats the best regression when four
     inputs reach one tip, from the study's rows as far as they are computed."""
-    rows = _two_segment_rows(profile)
+    rows = computed_rows(profile, "two_segment")
     differences = two_segment_differences(rows)
     return [
         "## A two-segment rod: four inputs, one tip (notebook 12)",
@@ -595,10 +596,7 @@ def recorded_summary(needed: pd.DataFrame, best: pd.DataFrame, computed: int, ce
 def recorded_section(profile: Profile) -> list[str]:
     """Learning from recorded runs (notebook 13): how much recording a model needs to match the
     simulator-trained RF-FWD on the twin, and whether friction changes the best model."""
-    try:
-        rows = read_sweep(profile, "recorded")
-    except ValueError:  # not run in this profile yet
-        rows = pd.DataFrame(columns=["key"])
+    rows = computed_rows(profile, "recorded")
     needed, best = recording_rule(rows), recorded_model_rule(rows)
     cells = len(recorded_cells(profile.name)) if profile.name in RECORDED else None
     return [
@@ -648,10 +646,7 @@ def trunk_summary(rows: pd.DataFrame, rule: pd.DataFrame, cells: int | None) -> 
 
 def trunk_section(profile: Profile) -> list[str]:
     """A real robot (notebook 14): the trunk study's verdicts from its rows as far as computed."""
-    try:
-        rows = read_sweep(profile, "trunk")
-    except ValueError:  # not run in this profile yet
-        rows = pd.DataFrame(columns=["key"])
+    rows = computed_rows(profile, "trunk")
     rule = trunk.flow_rule(rows) if len(rows) else pd.DataFrame()
     return [
         "## A real robot: the ASL trunk (notebook 14)",
@@ -700,10 +695,7 @@ def one_step_summary(tables: dict, computed: int, cells: int | None) -> str:
 
 def one_step_section(profile: Profile) -> list[str]:
     """A flow in one step (notebook 15): the one-step study's rules from its rows as far as computed."""
-    try:
-        rows = read_sweep(profile, "one_step")
-    except ValueError:  # not run in this profile yet
-        rows = pd.DataFrame(columns=["key"])
+    rows = computed_rows(profile, "one_step")
     tables = one_step.summarise(rows) if len(rows) else {}
     cells = len(one_step.cells(profile.name)) if profile.name in one_step.ONE_STEP else None
     rmse = pd.DataFrame()

@@ -15,7 +15,7 @@ import pandas as pd
 
 from softflow.models.registry import resolved_kwargs
 from softflow.profiles import Profile
-from softflow.report.page import _regime_rows, _two_segment_rows
+from softflow.report.page import regime_map_rows
 from softflow.report.study_tables import (
     best_against_best,
     recorded_model_rule,
@@ -24,7 +24,7 @@ from softflow.report.study_tables import (
     two_segment_differences,
     with_ci,
 )
-from softflow.report.tables import LABELS, read_sweep
+from softflow.report.tables import LABELS, computed_rows, read_sweep
 from softflow.studies import one_step, stats, trunk
 from softflow.studies.study import FLOOR
 
@@ -190,11 +190,11 @@ def result_block(profile: Profile) -> str:
     """The README's result block (markers included) from the profile's shipped study rows."""
     context = dict(
         table1=_table1(read_sweep(profile, "table1")),
-        regimes=_regimes(regime_map(_regime_rows(profile))),
-        two_segment=_two_segment(two_segment_differences(_two_segment_rows(profile))),
+        regimes=_regimes(regime_map(regime_map_rows(profile))),
+        two_segment=_two_segment(two_segment_differences(computed_rows(profile, "two_segment"))),
         recorded=_recorded(read_sweep(profile, "recorded")),
         trunk=_trunk(read_sweep(profile, "trunk"), len(trunk.cells(profile.name))),
-        one_step=_one_step(read_sweep(profile, "one_step"), len(one_step.cells(profile.name))),
+        one_step=_one_step(computed_rows(profile, "one_step"), len(one_step.cells(profile.name))),
     )
     return f"{BEGIN}\n{_rendered('result.md.j2', context)}\n{END}"
 

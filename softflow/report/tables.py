@@ -128,6 +128,15 @@ def read_sweep(profile: Profile, study: str) -> pd.DataFrame:
     )
 
 
+def computed_rows(profile: Profile, study: str) -> pd.DataFrame:
+    """``read_sweep``'s rows, or an empty frame (its ``key`` column only) where the study has not
+    run in this profile: what a page shows of a study as far as it is computed."""
+    try:
+        return read_sweep(profile, study)
+    except ValueError:
+        return pd.DataFrame(columns=["key"])
+
+
 def our_table(profile: Profile) -> pd.DataFrame:
     frame = pd.concat([read_result(profile, "results_baselines.csv"), read_result(profile, "results_rf.csv")])
     return table_rows(frame).rename(columns=COLUMNS).reindex(MODELS)
