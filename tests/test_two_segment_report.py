@@ -71,10 +71,11 @@ def rows() -> pd.DataFrame:
 
 def test_table_one_per_observation_with_the_floor_last_and_only_zero_plans(rows):
     table = study_tables.two_segment_table(rows)
-    assert table.index.tolist() == [("tip", "mlp"), ("tip", "rf"), ("tip+disk", "mlp"), ("simulator", "ilc-floor")]
+    bound = ("simulator", study_tables.ILC_BOUND)  # the floor's rows, named for what they are
+    assert table.index.tolist() == [("tip", "mlp"), ("tip", "rf"), ("tip+disk", "mlp"), bound]
     assert table.columns.tolist() == [f"{family}_{column}" for family in FAMILIES for column in ("mm", "seeds x refs")]
-    assert table.loc[("simulator", "ilc-floor"), "shape_mm"] == "0.10 [0.10, 0.10]"
-    assert table.loc[("simulator", "ilc-floor"), "random_seeds x refs"] == "1 x 3"
+    assert table.loc[bound, "shape_mm"] == "0.10 [0.10, 0.10]"
+    assert table.loc[bound, "random_seeds x refs"] == "1 x 3"
     assert table.loc[("tip", "mlp"), "shape_seeds x refs"] == "2 x 3"
     assert table.loc[("tip+disk", "mlp"), "path3d_seeds x refs"] == "1 x 1"
     # RF's z = 0 plans: 0.4 mean offset + 0.05 mean seed; its mean-of-4 rows (50 mm higher) are not Table I's
@@ -90,8 +91,9 @@ def test_decision_rule_per_family_where_both_groups_have_rows(rows):
     assert shape.difference_mm == pytest.approx(-1.0) and shape.high < 0 and shape.t_high < 0
     assert shape.verdict == "RF lower"
     assert differences.loc[("tip", "random"), "verdict"] == "no ranking"
-    path3d = differences.loc[("tip", "path3d")]  # one reference: no t-interval, so no ranking
-    assert np.isnan(path3d.t_low) and path3d.verdict.startswith("no ranking")
+    path3d = differences.loc[("tip", "path3d")]  # one path in rotations: no verdict, out of the Holm family
+    assert path3d.verdict == study_tables.ROTATED_WORDS and np.isnan(path3d.holm_p)
+    assert shape.holm_p == pytest.approx(min(1.0, 2 * min(shape.t_p, differences.loc[("tip", "random"), "t_p"])))
 
 
 def test_the_results_paragraph_says_each_verdict_and_how_many_cells_it_rests_on(rows):
@@ -153,7 +155,7 @@ def test_an_empty_or_floor_only_sweep_gives_empty_tables(rows):
         assert study_tables.two_segment_spread(part).empty
     assert study_tables.two_segment_table(pd.DataFrame()).empty
     assert study_tables.two_segment_table(rows[rows.model == "ilc-floor"]).index.tolist() == [
-        ("simulator", "ilc-floor")
+        ("simulator", study_tables.ILC_BOUND)
     ]
 
 
