@@ -19,24 +19,21 @@ from test_recordings import TINY, point_mass_run
 
 from softflow import HW_ROBOT, SIM_ROBOT, TWO_SEGMENT_ROD, Simulator, cli, control, data, recordings
 from softflow.models import checkpoints
+from softflow.models.registry import CONTROLLERS, resolved_kwargs
 from softflow.profiles import PROFILES
+from softflow.report import model_cards
 from softflow.studies import two_segment
 
 PAIRS = 10_000
 # N. Both paths compute in float32 from the same weights; they differ in the order of the matmul
 # sums and in the sigmoid: at most 3e-6 N measured on the shipped models' references.
 TOLERANCE = 1e-5
-# Every model that has a one-transition step, on each rod it ships for.
+# Every shipped model that has a one-transition step (not a window of past states), on each rod it
+# ships for: read from checkpoints/, so a newly shipped model is checked without a word here.
 SHIPPED = [
-    ("mlp", SIM_ROBOT, "vertical"),
-    ("rf", SIM_ROBOT, "vertical"),
-    ("rf-fwd", SIM_ROBOT, "vertical"),
-    ("rf-physical", SIM_ROBOT, "vertical"),
-    ("rf-fwd", HW_ROBOT, "vertical"),
-    ("rf-fwd", HW_ROBOT, "horizontal"),
-    ("mlp", TWO_SEGMENT_ROD, "vertical"),
-    ("rf", TWO_SEGMENT_ROD, "vertical"),
-    ("rf-fwd", TWO_SEGMENT_ROD, "vertical"),
+    (m.name, m.robot, m.gravity)
+    for m in model_cards.shipped_models()
+    if m.paper_model and m.name in CONTROLLERS and "context" not in resolved_kwargs(m.name)
 ]
 DELAY = 3  # periods of 10 ms: the delay the recorded models are trained with
 TEXT = {"model", "robot", "gravity", "softflow_version"}  # metadata stored as text, not JSON
