@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from softflow.report.provenance import cpu_model
+from softflow.machine import cpu_model
 
 REPO = Path(__file__).resolve().parent.parent
 RESULTS = REPO / "figures" / "bench"

@@ -5,12 +5,14 @@ else started (through its scheduler file)."""
 from __future__ import annotations
 
 import dataclasses
+import platform
 
 import pandas as pd
 import pytest
 from distributed import Client, LocalCluster
 
 from softflow import cli, profiles
+from softflow.machine import cpu_model
 from softflow.studies import sweep
 from softflow.studies.study import Study
 
@@ -75,6 +77,7 @@ def test_cluster_gives_the_rows_of_a_sequential_run(client, tmp_path):
     assert sequential.failures == distributed.failures == []
     assert len(sequential.rows) >= 2 and sequential.rows["seed"].nunique() >= 2
     assert (sequential.rows["cell_seconds"] >= 0).all()
+    assert (sequential.rows["machine"] == (cpu_model() or platform.machine())).all()  # which CPU made each row
     pd.testing.assert_frame_equal(measured(sequential.rows), measured(distributed.rows))
     pd.testing.assert_frame_equal(measured(pd.read_csv(distributed.csv)), measured(pd.read_csv(sequential.csv)))
     assert distributed.csv == tmp_path / "dask" / "smoke-ci.csv"

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from softflow.machine import cpu_model
 from softflow.store import REPO, write_text
 
 WALL_TIME_COLUMNS = ["minutes", "machine", "date", "commit"]
@@ -60,18 +61,6 @@ def machine() -> str:
         platform.machine() + (f" ({cpu})" if cpu else "") + f", {os.cpu_count()} cores{memory}, "
         f"Python {platform.python_version()}, {platform.system()}"
     )
-
-
-def cpu_model() -> str:
-    """The CPU's model name from /proc/cpuinfo ('' where there is none)."""
-    if not Path("/proc/cpuinfo").exists():
-        return ""
-    models = [
-        line.split(":", 1)[1].strip()
-        for line in Path("/proc/cpuinfo").read_text().splitlines()
-        if line.startswith("model name")
-    ]
-    return models[0] if models else ""
 
 
 def commit() -> str:

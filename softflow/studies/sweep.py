@@ -15,6 +15,7 @@ process, one after another (for debugging). The studies themselves live in ``stu
 from __future__ import annotations
 
 import json
+import platform
 import time
 import warnings
 from contextlib import contextmanager
@@ -28,6 +29,7 @@ from distributed import Client, LocalCluster, as_completed
 from tqdm import tqdm
 
 from softflow.checks import check_choice
+from softflow.machine import cpu_model
 from softflow.profiles import get_profile
 from softflow.store import DATA_DIR, REPO, content_key, write_text
 from softflow.studies.registry import STUDIES
@@ -270,8 +272,9 @@ def _outcomes(study: str, missing, profile_name: str, device: str, workdir: Path
 
 def _row(run_cell, cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> str:
     """One cell's rows as JSON text (a list), made where the cell runs: rows that are not
-    JSON-able fail their own cell, and fresh rows read back exactly like cached ones. Each row
-    carries the cell's wall time (``cell_seconds``, what sizes a study for a cluster)."""
+        JSON-able fail their own cell, and fresh rows read back exactly like cached ones. Each row
+        carries the cell's wall time (``cell_seconds``, what sizes a study for a cluster) and the CPU
+    that computed it (``machine``)."""
     start = time.perf_counter()
     measured = run_cell(cell, profile_name, device, workdir, key)
     fields = {
@@ -280,6 +283,7 @@ def _row(run_cell, cell: dict, profile_name: str, device: str, workdir: Path, ke
         "device": device,
         "key": key,
         "cell_seconds": round(time.perf_counter() - start, 1),
+        "machine": cpu_model() or platform.machine(),  # rows made on several machines say which made each
     }
     rows = [measured] if isinstance(measured, dict) else list(measured)
     if clash := sorted({name for row in rows for name in row} & set(fields)):
