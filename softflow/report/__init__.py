@@ -63,6 +63,7 @@ EXPORTS = {
         "VERDICTS",
         "verdict_counts",
         "gap_sensitivity",
+        "closed_loop_table",
     ],
 }
 SUBMODULES = ["plots"]

@@ -15,7 +15,7 @@ from softflow.data import OBSERVATIONS
 from softflow.hardware.gap import GAP_TERMS
 from softflow.report.tables import BASELINES, LABELS, MODELS, RF_FAMILY
 from softflow.studies import stats
-from softflow.studies.closed_loop import CAMERA_LATENCY
+from softflow.studies.closed_loop import CAMERA_LATENCY, LOOP_MODES
 from softflow.studies.study import FLOOR
 from softflow.studies.two_segment import FLOOR_OBSERVATION
 
@@ -137,6 +137,19 @@ def gap_sensitivity(rows: pd.DataFrame) -> pd.DataFrame:
     table = table.reindex([g for g in labels if g in table.index]).rename(index=labels)
     table.index.name, table.columns.name = None, None
     return table[[g for g in ("vertical", "horizontal") if g in table.columns]]
+
+
+def closed_loop_table(rows: pd.DataFrame) -> pd.DataFrame:
+    """Table III extended (notebook 10): RMSE through the camera (mm) per configuration and
+    reference, one column per loop mode present (in ``LOOP_MODES`` order), under the typical gap
+    at the nominal camera; a ``mean`` row per configuration over the shapes, as Table III."""
+    typical = rows[rows.gap == "typical"]
+    main = typical[(typical.latency == CAMERA_LATENCY) & (typical.dropped == 0)]
+    table = main.pivot_table(index=["gravity", "reference"], columns="mode", values="rmse_mm", sort=False)
+    table = table[[m for m in LOOP_MODES if m in table.columns]]
+    shapes = main[main.family == "shape"].groupby(["gravity", "mode"], sort=False).rmse_mm.mean().unstack()
+    shapes = shapes[table.columns].assign(reference="mean").set_index("reference", append=True)
+    return pd.concat([table, shapes]).sort_index(level=0, sort_remaining=False)
 
 
 # ---------------------------------------------------------------------------- where a flow wins (notebook 09)
