@@ -23,7 +23,7 @@ from softflow.store import REPO
 README = SHIPPED / "README.md"
 ROD_CONSTANTS = {SIM_ROBOT.name: "SIM_ROBOT", HW_ROBOT.name: "HW_ROBOT", TWO_SEGMENT_ROD.name: "TWO_SEGMENT_ROD"}
 PROFILE = "paper"  # only paper-profile, seed-0 models ship (models.checkpoints.checkpoint_path)
-ORDER = [*MODELS, "mlp-physical", "forward"]  # Table I order, then the rest
+ORDER = [*MODELS, *(name for name in CONTROLLERS if name not in MODELS), "forward"]  # Table I order, then the rest
 WHAT = {
     "mlp": "inverse MLP: u_t from (x_t, x_{t+1})",
     "mlp-physical": "inverse MLP that also reads the quasi-static prior u_phys(p_{t+1})",
@@ -32,6 +32,8 @@ WHAT = {
     "rf": "conditional rectified flow: an MLP velocity field integrated from noise by Euler steps",
     "rf-physical": "rectified flow of the residual u - u_phys around the quasi-static prior",
     "rf-fwd": "rectified flow trained with a consistency term through the frozen forward surrogate",
+    "rf-1": "one-step flow (MeanFlow): the average velocity over a span, so one network call samples u",
+    "rf-fwd-1": "one-step flow (MeanFlow) with RF-FWD's consistency term on its one-step estimate",
     "forward": "forward-dynamics surrogate (x_t, u_t) -> x_{t+1}: RF-FWD's consistency term, not a controller",
 }
 
