@@ -106,14 +106,14 @@ def test_the_shipped_ci_rows_are_the_grid_and_the_recorded_inputs_are_the_judges
 def test_the_results_paragraph_says_the_gate_each_verdict_and_the_spread():
     from softflow.report import page
 
-    rows = made_rows(naive_gap=4.0).assign(key=lambda r: r.model + r.observation + r.seed.astype(str))
+    rows = made_rows(naive_gap=4.0).assign(key=lambda r: r.model + r.observation + r.seed.astype(str), run="random_2")
     spread = {"tip": (2.0, 1.0), "disks": (1.5, 1.5)}  # tip: twice its floor; every disk: at it
     rows["conditional_spread"] = rows.observation.map(lambda o: spread[o][0])
     rows["conditional_spread_floor"] = rows.observation.map(lambda o: spread[o][1])
-    paragraph = page.trunk_summary(rows, trunk.flow_rule(rows), 33)
+    paragraph = page.trunk_summary(trunk.summarise(rows), rows["key"].nunique(), 33)
     assert "(11 of the study's 33 cells have rows)" in paragraph
     assert "telling them apart on 1 of 1 families" in paragraph
     assert "observing tip: f -" in paragraph and "(rf against mlp: rf lower)" in paragraph
     assert "(rf against mlp: no ranking)" in paragraph
     assert "tip 2.0x, disks 1.0x" in paragraph
-    assert "no cell has rows yet" in page.trunk_summary(pd.DataFrame(columns=["key"]), pd.DataFrame(), 33)
+    assert "no cell has rows yet" in page.trunk_summary({}, 0, 33)

@@ -609,17 +609,15 @@ def recorded_section(profile: Profile) -> list[str]:
     ]
 
 
-def trunk_summary(rows: pd.DataFrame, rule: pd.DataFrame, cells: int | None) -> str:
-    """One paragraph on the real robot (notebook 14): how many cells have rows, whether the judge
-    tells the training mean from the recorded inputs per family (the gate), each observation's
-    best flow against its best baseline with the verdict (``rule``: ``trunk.flow_rule`` of the
-    rows), and the conditional spread over its floor, tip alone against every disk; whichever way
-    they come out."""
-    computed = rows["key"].nunique()
+def trunk_summary(tables: dict, computed: int, cells: int | None) -> str:
+    """One paragraph on the real robot (notebook 14) from ``trunk.summarise``'s tables: how many
+    cells have rows, whether the judge tells the training mean from the recorded inputs per family
+    (the gate), each observation's best flow against its best baseline with the verdict, and the
+    conditional spread over its floor, tip alone against every disk; whichever way they come out."""
     done = f"{computed} of the study's {cells} cells have rows" if cells else f"{computed} cells have rows"
-    if rows.empty:
+    if not computed:
         return f"On the ASL trunk no cell has rows yet ({done}; `softflow sweep trunk --profile paper`)."
-    check = trunk.judge_check(rows)
+    check, rule, spread = tables["judge_check"], tables["flow_rule"], tables["spread"]
     gate = check[check.planner == trunk.GATE]
     told = [f"{row.family} {row.difference_mm:+.2f} mm [{row.low:+.2f}, {row.high:+.2f}]" for row in gate.itertuples()]
     passed = int(gate.tells_apart.sum())
@@ -634,7 +632,6 @@ def trunk_summary(rows: pd.DataFrame, rule: pd.DataFrame, cells: int | None) -> 
             for row in part.itertuples()
         ]
         sentences.append(f"Best flow minus best baseline observing {observation}: {'; '.join(said)}.")
-    spread = trunk.spread(rows)
     if len(spread):
         ratios = [f"{observation} {row['spread / floor']:.1f}x" for observation, row in spread.iterrows()]
         sentences.append(f"The conditional spread of u over its estimator floor: {', '.join(ratios)}.")
@@ -647,11 +644,13 @@ def trunk_summary(rows: pd.DataFrame, rule: pd.DataFrame, cells: int | None) -> 
 def trunk_section(profile: Profile) -> list[str]:
     """A real robot (notebook 14): the trunk study's verdicts from its rows as far as computed."""
     rows = computed_rows(profile, "trunk")
-    rule = trunk.flow_rule(rows) if len(rows) else pd.DataFrame()
+    tables = trunk.summarise(rows) if len(rows) else {}
+    rule = tables.get("flow_rule", pd.DataFrame())
+    cells = len(trunk.cells(profile.name)) if profile.name in trunk.TRUNK_GRID else None
     return [
         "## A real robot: the ASL trunk (notebook 14)",
         "",
-        trunk_summary(rows, rule, len(trunk.cells(profile.name)) if profile.name in trunk.TRUNK_GRID else None),
+        trunk_summary(tables, rows["key"].nunique(), cells),
         "",
         *([markdown(rule.set_index(["observation", "family"])), ""] if len(rule) else []),
     ]

@@ -128,10 +128,10 @@ def _recorded(rows: pd.DataFrame) -> dict:
 
 
 def _trunk(rows: pd.DataFrame, cells: int) -> dict:
-    """The real robot's verdicts as far as its cells are computed (``trunk.flow_rule``)."""
-    rule = trunk.flow_rule(rows) if len(rows) else pd.DataFrame()
-    spread = trunk.spread(rows) if len(rows) else pd.DataFrame()
-    judged = trunk.judged_table(rows) if len(rows) else pd.DataFrame(columns=["model", "family", "mean"])
+    """The real robot's verdicts as far as its cells are computed (``trunk.summarise``)."""
+    tables = trunk.summarise(rows) if len(rows) else {}
+    rule, spread = tables.get("flow_rule", pd.DataFrame()), tables.get("spread", pd.DataFrame())
+    judged = tables.get("judged", pd.DataFrame(columns=["model", "family", "mean"]))
     floor = judged[judged.model == "recorded"].set_index("family")["mean"]
     trained = judged[~judged.model.isin(trunk.NAIVE)]
     below = trained[trained["mean"].to_numpy() < floor.reindex(trained.family).to_numpy()]

@@ -452,3 +452,16 @@ def spread(rows: pd.DataFrame) -> pd.DataFrame:
     trained_rows = rows[~rows.model.isin(NAIVE)].drop_duplicates("observation")
     table = trained_rows.set_index("observation")[["conditional_spread", "conditional_spread_floor"]]
     return table.assign(**{"spread / floor": table.conditional_spread / table.conditional_spread_floor})
+
+
+def summarise(rows: pd.DataFrame) -> dict[str, pd.DataFrame]:
+    """The study's tables from its rows, what notebook 14, the results page and the README read:
+    (b) the judged tip error (``judged``), the judge's check (``judge_check``) and the flows'
+    rule (``flow_rule``); (a) and (d) per step (``per_step``); (c) the spread (``spread``)."""
+    return dict(
+        judged=judged_table(rows),
+        judge_check=judge_check(rows),
+        flow_rule=flow_rule(rows),
+        per_step=per_step(rows),
+        spread=spread(rows),
+    )
