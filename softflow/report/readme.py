@@ -35,7 +35,11 @@ SPEED_END = "<!-- /speed -->"
 TEMPLATES = Path(__file__).with_name("templates")
 STEP_TARGET_MS = 0.05  # a step fits a 1 kHz period twenty times over
 SPEED_MODELS = ("mlp", "rf", "rf-physical", "rf-fwd", "rf-1", "rf-fwd-1")
-LOOP_CONDITIONS = ("idle", "idle_spinning", "one_core_busy")
+LOOP_CONDITIONS = {  # bench_loop's runs: how each waits for its periods, in words
+    "idle": "sleeping, the cores idle",
+    "idle_spinning": "spinning, the cores idle",
+    "one_core_busy": "sleeping beside a busy core",
+}
 SETTING, FOLDED = "paper", "folded"  # the regime map's variants the block names; the rest are counted
 
 
@@ -233,7 +237,10 @@ def speed_block(bench: Path) -> str:
     periods = [int(v) for q, v in loop.items() if q.endswith(".periods")]
     if len(set(periods)) != 1:
         raise ValueError(f"loop.csv's runs differ in length ({sorted(set(periods))} periods): run `make bench`")
-    context = dict(models=models, machine=machine, periods=periods[0], seconds=periods[0] // 1000)
+    measured = [
+        words for condition, words in LOOP_CONDITIONS.items() if any(q.startswith(f"{condition}.") for q in loop)
+    ]
+    context = dict(models=models, machine=machine, periods=periods[0], seconds=periods[0] // 1000, conditions=measured)
     context |= dict(target=STEP_TARGET_MS, fast=fast, slow=slow)
     return f"{SPEED_BEGIN}\n{_rendered('speed.md.j2', context)}\n{SPEED_END}"
 
