@@ -160,3 +160,8 @@ def test_the_two_segment_study_ships_its_seed_0_models_and_never_overwrites(tmp_
     assert shipped[0].read_bytes() == b"weights of seed 0"
     with pytest.raises(ValueError, match="no seed-0 'forward' of the study"):
         two_segment.ship_models(tmp_path / "study", ["rf-fwd"])  # its surrogate first: not trained either
+    surrogate = tmp_path / "shipped" / rod / "forward.pt"
+    surrogate.write_bytes(b"the shipped surrogate")  # already shipped, so the study trained RF-FWD against it
+    checkpoints.checkpoint_path("rf-fwd", "paper", rod, root=trained.parent.parent).write_bytes(b"rf-fwd of seed 0")
+    assert two_segment.ship_models(tmp_path / "study", ["rf-fwd"]) == [tmp_path / "shipped" / rod / "rf-fwd.pt"]
+    assert surrogate.read_bytes() == b"the shipped surrogate"

@@ -264,7 +264,9 @@ def trained_controllers(
 
 def ship_models(workdir: Path, models=None) -> list[Path]:
     """Copy the study's seed-0 paper models of the tip (``models``: names, default every one
-    trained so far, with RF-FWD's surrogate) from ``workdir`` (the sweep's folder of this study)
+    trained so far, with RF-FWD's surrogate, unless one is already shipped and the study used it)
+    from ``workdir`` (the sweep's folder of this study, or of one that trains its models the
+    same way: the one_step study's)
     into checkpoints/, where ``load_controller(name, robot=TWO_SEGMENT_ROD)`` finds them current
     (``Profile.rod_train``). A shipped file is never overwritten: one that differs is a
     ValueError. Returns the shipped paths."""
@@ -272,12 +274,15 @@ def ship_models(workdir: Path, models=None) -> list[Path]:
     names = TWO_SEGMENT["paper"]["models"]["tip"] if models is None else models
     shipped = []
     for name in dict.fromkeys(n for model in names for n in (*model_spec(model).requires, model)):
-        source = checkpoint_path(name, "paper", rod, root=root)
-        if models is None and not source.is_file():
-            continue
+        source, target = (
+            checkpoint_path(name, "paper", rod, root=root),
+            checkpoint_path(name, "paper", rod, shipped=True),
+        )
+        if not source.is_file() and (models is None or (name not in names and target.is_file())):
+            continue  # not trained here: every model the study has so far, or a surrogate already shipped
         if not source.is_file():
             raise ValueError(f"no seed-0 {name!r} of the study in {source.parent}; run its cell first")
-        target, weights = checkpoint_path(name, "paper", rod, shipped=True), source.read_bytes()
+        weights = source.read_bytes()
         if not target.exists():
             with atomic_write(target) as f:
                 f.write(weights)
