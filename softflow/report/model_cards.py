@@ -19,6 +19,7 @@ from softflow.report.tables import LABELS, MODELS, markdown, read_result, read_s
 from softflow.rod.dynamics import GRAVITY_DIRECTIONS
 from softflow.rod.robots import HW_ROBOT, ROBOTS, SIM_ROBOT, TWO_SEGMENT_ROD, Robot, rod_folder
 from softflow.store import REPO
+from softflow.studies.one_step import TWO_SEGMENT_TIP
 
 README = SHIPPED / "README.md"
 ROD_CONSTANTS = {SIM_ROBOT.name: "SIM_ROBOT", HW_ROBOT.name: "HW_ROBOT", TWO_SEGMENT_ROD.name: "TWO_SEGMENT_ROD"}
@@ -146,6 +147,7 @@ def committed_results() -> dict:
         sizes=read_result(profile, "baseline_sizes.csv").set_index(["model", "size"]),
         table3=table3(profile),
         two_segment=read_sweep(profile, "two_segment"),
+        one_step=read_sweep(profile, "one_step"),
     )
 
 
@@ -199,13 +201,26 @@ def _results_lines(model: ShippedModel, results: dict) -> list[tuple[str, str]]:
         rows = results["two_segment"]
         mine = rows[(rows.model == model.name) & (rows.observation == "tip") & (rows.plan == "zero")]
         seed0 = mine[mine.seed == 0].groupby("family").rmse_mm.mean()
-        lines.append(
-            (
-                "two_segment sweep (figures/sweeps/two_segment-paper.csv: 8 shapes, 24 random, 3 3-D paths; "
-                "the tip observed), shape / random / 3-D paths",
-                f"this checkpoint (seed 0) {seed0['shape']:.2f} / {seed0['random']:.2f} / {seed0['path3d']:.2f} mm",
+        if len(seed0):
+            lines.append(
+                (
+                    "two_segment sweep (figures/sweeps/two_segment-paper.csv: 8 shapes, 24 random, 3 3-D paths; "
+                    "the tip observed), shape / random / 3-D paths",
+                    f"this checkpoint (seed 0) {seed0['shape']:.2f} / {seed0['random']:.2f} / {seed0['path3d']:.2f} mm",
+                )
             )
-        )
+        steps = resolved_kwargs(model.name).get("steps")
+        rows = results["one_step"]
+        mine = rows[(rows.rod == TWO_SEGMENT_TIP) & (rows.model == model.name) & (rows.plan_steps == steps)]
+        seed0 = mine[mine.seed == 0].groupby("family").rmse_mm.mean()
+        if len(seed0) and not len(results["two_segment"].query("model == @model.name")):  # the study that trained it
+            lines.append(
+                (
+                    f"one_step sweep (figures/sweeps/one_step-paper.csv: 8 shapes, 24 random; the tip observed, "
+                    f"{steps} step), shape / random",
+                    f"this checkpoint (seed 0) {seed0['shape']:.2f} / {seed0['random']:.2f} mm",
+                )
+            )
     if model.paper_model and model.robot == HW_ROBOT and model.name == "rf-fwd":
         mean = results["table3"].loc["mean", (model.gravity, "ours")]
         paper = results["table3"].loc["mean", (model.gravity, "paper")]
