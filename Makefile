@@ -74,7 +74,7 @@ lint: $(STAMP)
 #   .venv/bin/papermill --cwd notebooks -p profile ci notebooks/NN_x.ipynb /tmp/NN_x.ipynb
 # and copy it back; this then drops the execution timestamps, papermill's metadata and its
 # injected-parameters cell, and re-encodes the figures losslessly (tests/test_notebooks_clean.py
-# fails on any of those left, or on more than 1.5 MB of notebooks in all).
+# fails on any of those left, or on more than 1.6 MB of notebooks in all).
 strip: $(STAMP)
 	$(PY) tests/strip_notebooks.py
 
