@@ -201,6 +201,10 @@ def _results_lines(model: ShippedModel, results: dict) -> list[tuple[str, str]]:
         rows = results["two_segment"]
         mine = rows[(rows.model == model.name) & (rows.observation == "tip") & (rows.plan == "zero")]
         seed0 = mine[mine.seed == 0].groupby("family").rmse_mm.mean()
+        steps = resolved_kwargs(model.name).get("steps")  # a one-step flow: the one_step study trained it
+        rows = results["one_step"]
+        mine = rows[(rows.rod == TWO_SEGMENT_TIP) & (rows.model == model.name) & (rows.plan_steps == steps)]
+        one_step_seed0 = mine[mine.seed == 0].groupby("family").rmse_mm.mean()
         if len(seed0):
             lines.append(
                 (
@@ -209,16 +213,12 @@ def _results_lines(model: ShippedModel, results: dict) -> list[tuple[str, str]]:
                     f"this checkpoint (seed 0) {seed0['shape']:.2f} / {seed0['random']:.2f} / {seed0['path3d']:.2f} mm",
                 )
             )
-        steps = resolved_kwargs(model.name).get("steps")
-        rows = results["one_step"]
-        mine = rows[(rows.rod == TWO_SEGMENT_TIP) & (rows.model == model.name) & (rows.plan_steps == steps)]
-        seed0 = mine[mine.seed == 0].groupby("family").rmse_mm.mean()
-        if len(seed0) and not len(results["two_segment"].query("model == @model.name")):  # the study that trained it
+        elif len(one_step_seed0):
             lines.append(
                 (
                     f"one_step sweep (figures/sweeps/one_step-paper.csv: 8 shapes, 24 random; the tip observed, "
                     f"{steps} step), shape / random",
-                    f"this checkpoint (seed 0) {seed0['shape']:.2f} / {seed0['random']:.2f} mm",
+                    f"this checkpoint (seed 0) {one_step_seed0['shape']:.2f} / {one_step_seed0['random']:.2f} mm",
                 )
             )
     if model.paper_model and model.robot == HW_ROBOT and model.name == "rf-fwd":

@@ -272,8 +272,8 @@ def _outcomes(study: str, missing, profile_name: str, device: str, workdir: Path
 
 def _row(run_cell, cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> str:
     """One cell's rows as JSON text (a list), made where the cell runs: rows that are not
-        JSON-able fail their own cell, and fresh rows read back exactly like cached ones. Each row
-        carries the cell's wall time (``cell_seconds``, what sizes a study for a cluster) and the CPU
+    JSON-able fail their own cell, and fresh rows read back exactly like cached ones. Each row
+    carries the cell's wall time (``cell_seconds``, what sizes a study for a cluster) and the CPU
     that computed it (``machine``)."""
     start = time.perf_counter()
     measured = run_cell(cell, profile_name, device, workdir, key)
