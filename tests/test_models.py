@@ -198,7 +198,9 @@ def test_a_plan_beyond_the_actuator_range_is_clipped_with_a_counted_warning(data
     np.testing.assert_array_equal(plans[0], u)  # evaluations clip silently: saturation is what they measure
 
 
-@pytest.mark.parametrize("name", ["mlp", "mlp-physical", "rf", "rf-physical", "rf-fwd", "rf-1", "rf-fwd-1"])
+@pytest.mark.parametrize(
+    "name", ["mlp", "mlp-physical", "rf", "rf-physical", "rf-fwd", "rf-1", "rf-fwd-1", "rf-physical-1"]
+)
 def test_step_gives_the_planned_u_of_each_transition(name, dataset, trained):
     controller = control.Controller(trained(name)[0], name)
     states = dataset.states[dataset.test[0], :60]
@@ -213,7 +215,7 @@ def test_step_gives_the_planned_u_of_each_transition(name, dataset, trained):
     np.testing.assert_allclose(single, planned[10], atol=tolerance)
 
 
-@pytest.mark.parametrize("name", ["rf", "rf-physical", "rf-1"])
+@pytest.mark.parametrize("name", ["rf", "rf-physical", "rf-1", "rf-physical-1"])
 def test_step_draws_are_the_flows_samples_from_the_same_noise(name, dataset, trained):
     controller = control.Controller(trained(name)[0], name)
     states = dataset.states[dataset.test[0], 30:33]  # two transitions
@@ -239,6 +241,12 @@ def test_step_checks_its_input_and_needs_a_per_step_model(dataset, trained):
         controller.step(np.zeros(6), np.zeros(5))
     with pytest.raises(ValueError, match="x_t must be finite"):
         controller.step(np.full(6, np.nan), np.zeros(6))
+    rest = dataset.states[0, 0]
+    for bad in (np.nan, np.inf):  # in a velocity, which the workspace check does not bound
+        with pytest.raises(ValueError, match="x_next must be finite"):
+            controller.step(rest, np.concatenate([rest[:3], [bad, 0.0, 0.0]]))
+        with pytest.raises(ValueError, match="x_next must be finite"):
+            control.Controller(controller.model, "mlp", workspace_margin=None).step(rest, np.full(6, bad))
     with pytest.raises(ValueError, match="lstm reads a window of 10 past transitions"):
         control.Controller(trained("lstm")[0], "lstm").step(np.zeros(6), np.zeros(6))
 

@@ -110,7 +110,7 @@ def test_the_graph_steps_as_the_controller_on_its_rods_references(name, robot, g
     assert outside.dtype == bool and not outside.any()
 
 
-@pytest.mark.parametrize("name", ["rf-1", "rf-fwd-1"])
+@pytest.mark.parametrize("name", ["rf-1", "rf-fwd-1", "rf-physical-1"])
 @pytest.mark.parametrize("steps", [1, 2])
 def test_a_one_step_flows_graph_steps_as_the_controller(name, steps, trained, tmp_path):
     model = trained(name)[0]

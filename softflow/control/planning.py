@@ -104,6 +104,7 @@ class Controller:
             symmetric = (low == -high).all() and (high == high[0]).all()
             bounds = [f"{a:g} to {b:g}" for a, b in zip(low, high)]
             self._range = f"the input range +-{high[0]:g}" if symmetric else f"the input ranges {', '.join(bounds)}"
+        self._inside_all = (np.max(self._low), np.min(self._high))  # u inside these is inside every input's range
         self.generative = isinstance(model, RectifiedFlow)
         self.statics = Simulator(robot, gravity).static_table() if model.needs_statics else None
         self.statics_grid = InverseGrid(self.statics) if self.statics is not None else None  # step's prior
@@ -127,7 +128,7 @@ class Controller:
         window, unbatched = self._transition(x_t, x_next)  # (B, 2, d)
         prior = self._prior(window)
         u = (
-            self.lean.predict(window, np.zeros((len(window), self.model.dims.inputs)), prior)
+            self.lean.predict(window, None, prior)  # from z = 0
             if self.generative
             else self.lean.predict(window, prior)
         )
@@ -165,13 +166,13 @@ class Controller:
         inside the workspace), and whether they were one transition; two float64 states of the
         right size, the real-time case, skip the general conversion."""
         d = self.model.dims.state
-        window = None
         if all(type(x) is np.ndarray and x.dtype == np.float64 and x.shape == (d,) for x in (x_t, x_next)):
-            window, unbatched = np.stack((x_t, x_next))[None], True
-        if window is None or not np.isfinite(window).all():
-            x, unbatched = as_real_array(x_t, "x_t", (None, d), allow_unbatched=True)
-            x_next, _ = as_real_array(x_next, "x_next", x.shape[1:] if unbatched else x.shape)
-            window = np.stack([x, x_next[None] if unbatched else x_next], 1)
+            window = np.stack((x_t, x_next))[None]  # (1, 2, d)
+            if (np.abs(window - self._centre) <= self._reach).all():  # finite, and inside (NaN compares False)
+                return window, True
+        x, unbatched = as_real_array(x_t, "x_t", (None, d), allow_unbatched=True)
+        x_next, _ = as_real_array(x_next, "x_next", x.shape[1:] if unbatched else x.shape)
+        window = np.stack([x, x_next[None] if unbatched else x_next], 1)
         if self._outside(window):  # rare: name the state that is out
             for j, name in enumerate(("x_t", "x_next")):
                 self.check_workspace(window[0, j] if unbatched else window[:, j], name)
@@ -180,6 +181,8 @@ class Controller:
     def _clip(self, u, what: str) -> np.ndarray:
         """u (..., m) clipped to the input range, with a ``SaturationWarning`` that counts the
         values clipped (3 levels up: the caller of ``plan`` or ``step``)."""
+        if self._inside_all[0] <= u.min() and u.max() <= self._inside_all[1]:  # the usual case, in two reductions
+            return u
         kept = np.clip(u, self._low, self._high)
         if (kept != u).any():
             clipped = int(np.sum(kept != u))
@@ -264,8 +267,11 @@ class Controller:
         if margin is not None and not margin > 0:
             raise ValueError(f"workspace_margin must be positive or None; got {margin!r}")
         self._margin = margin
+        d, p = self.model.dims.state, len(self._mean)
+        self._centre = np.concatenate([self._mean, np.zeros(d - p)])  # (d,): a step's check, in one compare
+        self._reach = np.full(d, np.finfo(np.float64).max)  # any finite value, where nothing is refused
         if margin is not None:
-            self._halfwidth = margin * self._std
+            self._halfwidth = self._reach[:p] = margin * self._std
 
     @property
     def workspace(self) -> tuple[np.ndarray, np.ndarray | None]:

@@ -171,15 +171,27 @@ class LeanFlow(LeanModel):
         self.w_span = first[m + 1] if model.times == 2 else np.zeros_like(self.w_tau)  # MeanFlow's span h
         self.w_first, self.b_first = self.fold_features(self.w_condition, b)
         self.steps = model.steps
+        self._time_weights = {}  # Euler steps n -> the time's share of the first layer at each step
 
-    def predict(self, window: np.ndarray, noise: np.ndarray, prior: np.ndarray | None = None, steps: int | None = None):
-        """u (B, m) for state windows (B, 2, d) [x_t, x_{t+1}] and noise z (B, m)."""
+    def predict(
+        self, window: np.ndarray, noise: np.ndarray | None, prior: np.ndarray | None = None, steps: int | None = None
+    ):
+        """u (B, m) for state windows (B, 2, d) [x_t, x_{t+1}] and noise z (B, m); None: z = 0, where
+        the first step's xi @ W is zero and skipped."""
         first_bias = self.first_layer(window, prior, self.w_first, self.b_first)  # (B, H), once per call
-        xi, n = np.array(noise, dtype=np.float32), self.steps if steps is None else steps
-        for k in range(n):
-            h = xi @ self.w_xi + ((k / n) * self.w_tau + self.w_span / n) + first_bias
+        n = self.steps if steps is None else steps
+        xi = None if noise is None else np.array(noise, dtype=np.float32)
+        for time_weight in self.time_weights(n):
+            h = first_bias + time_weight if xi is None else xi @ self.w_xi + time_weight + first_bias
             for w, b in self.weights[1:]:
                 h = self.silu(h) @ w + b
-            xi = xi + h / n
+            xi = h / n if xi is None else xi + h / n
         u = xi * self.u_std + self.u_mean
         return u + prior if self.prior else u
+
+    def time_weights(self, n: int) -> list[np.ndarray]:
+        """The time's share of the first layer at each of ``n`` Euler steps, (H,) each: tau = k / n
+        and a one-step flow's span 1 / n. Computed once per n."""
+        if n not in self._time_weights:
+            self._time_weights[n] = [(k / n) * self.w_tau + self.w_span / n for k in range(n)]
+        return self._time_weights[n]

@@ -37,6 +37,7 @@ MODELS = {
     "rf-fwd": ModelSpec(RectifiedFlow, {"consistency": 1.0}, requires=("forward",)),
     "rf-1": ModelSpec(MeanFlow, {"steps": 1}),
     "rf-fwd-1": ModelSpec(MeanFlow, {"steps": 1, "consistency": 1.0}, requires=("forward",)),
+    "rf-physical-1": ModelSpec(MeanFlow, {"steps": 1, "prior": True}),
 }
 # What load_controller loads: every inverse model, not RF-FWD's forward surrogate.
 CONTROLLERS = tuple(name for name, spec in MODELS.items() if spec.cls is not ForwardModel)

@@ -35,6 +35,7 @@ WHAT = {
     "rf-fwd": "rectified flow trained with a consistency term through the frozen forward surrogate",
     "rf-1": "one-step flow (MeanFlow): the average velocity over a span, so one network call samples u",
     "rf-fwd-1": "one-step flow (MeanFlow) with RF-FWD's consistency term on its one-step estimate",
+    "rf-physical-1": "one-step flow (MeanFlow) of the residual u - u_phys around the quasi-static prior",
     "forward": "forward-dynamics surrogate (x_t, u_t) -> x_{t+1}: RF-FWD's consistency term, not a controller",
 }
 

@@ -34,6 +34,7 @@ LABELS = {
     "rf-fwd": "RF-FWD",
     "rf-1": "RF-1",
     "rf-fwd-1": "RF-FWD-1",
+    "rf-physical-1": "RF-Physical-1",
     "mlp-physical": "MLP-Physical",
     FLOOR: "ILC floor (true simulator)",
 }

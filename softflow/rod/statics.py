@@ -10,6 +10,8 @@ the table assume two inputs and refuse other rods.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy.interpolate import RectBivariateSpline
 from scipy.optimize import least_squares
@@ -371,9 +373,15 @@ class InverseGrid:
         self.strides, self.cell_strides = strides, np.array([(arcs - 1) * (lengths - 1), lengths - 1, 1])
         self.corners = np.array(list(np.ndindex(2, 2, 2))) @ strides  # (8,) flat offsets of a cell's corners
         self.arc_scale = 2 * table.robot.bending_stiffness / table.robot.cable_radius / table.robot.length
+        self._low, self._spacing, self._shape = self.low.tolist(), self.spacing.tolist(), self.shape.tolist()
+        self._strides, self._cell_strides = strides.tolist(), self.cell_strides.tolist()  # for _inverse_point
 
     def inverse(self, p) -> np.ndarray:
         """u (B, 2) for tip positions p (B, 3), as ``StaticTable.inverse`` to 1e-3 N."""
+        if len(p) == 1:  # a controller's step: scalar arithmetic, a fifth of the array path's time
+            u = self._inverse_point(*p[0].tolist())
+            if u is not None:
+                return np.array([u])
         s, cell, exact = self._locate(p)
         f = s - cell  # (B, 3) in [0, 1] inside the grid
         corners = self.u[(cell @ self.strides)[:, None] + self.corners]  # (B, 8, 2)
@@ -385,6 +393,26 @@ class InverseGrid:
         if exact.any():
             u[exact] = self.table.inverse(p[exact])
         return u
+
+    def _inverse_point(self, x: float, y: float, z: float) -> list[float] | None:
+        """``inverse`` of one tip point in Python floats, the same operations in the same order as
+        the array path (bit for bit but for libm's hypot and atan2); None where the table solves it."""
+        lateral = math.hypot(y, z)
+        scale = self.arc_scale * math.atan2(lateral, x) / (lateral + 1e-300)
+        (l0, l1, l2), (h0, h1, h2), (n0, n1, n2) = self._low, self._spacing, self._shape
+        s0, s1, s2 = (scale * y - l0) / h0, (scale * z - l1) / h1, (math.hypot(x, lateral) - l2) / h2
+        if not (0 <= s0 <= n0 - 1 and 0 <= s1 <= n1 - 1 and 0 <= s2 <= n2 - 1):
+            return None
+        c0, c1, c2 = min(int(s0), n0 - 2), min(int(s1), n1 - 2), min(int(s2), n2 - 2)
+        k0, k1, k2 = self._cell_strides
+        if self.kink[c0 * k0 + c1 * k1 + c2 * k2]:
+            return None
+        k0, k1, k2 = self._strides
+        corners = self.u[c0 * k0 + c1 * k1 + c2 * k2 + self.corners].ravel().tolist()  # 8 corners x (u1, u2)
+        for f in (s0 - c0, s1 - c1, s2 - c2):  # halve the corners along each axis in turn: 8 -> 4 -> 2 -> 1
+            half = len(corners) // 2
+            corners = [a + f * (b - a) for a, b in zip(corners[:half], corners[half:])]
+        return corners
 
     def solved_by_table(self, p) -> np.ndarray:
         """(B,) bool: the points p (B, 3) that ``inverse`` hands to the table (off the grid, or in
