@@ -21,7 +21,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 from bench_fresh_clone import timed
-from results_file import REPO, RESULTS, commit, machine
+from results_file import REPO, RESULTS
+
+from softflow.machine import description
+from softflow.report.provenance import commit
 
 NUMPY_SSE42 = "SSE SSE2 SSE3 SSSE3 SSE41 POPCNT SSE42"
 # numpy 2.4 dispatches by x86-64 levels: a list of single features up to AVX2 leaves it at its
@@ -113,7 +116,7 @@ def main() -> int:
                     test_minutes=round(seconds / 60, 2),
                     tolerant_cells=len(cells),
                     largest_share_of_tolerance=max(used, default=0.0),  # a printed number's |ran - committed| / allowed
-                    machine=machine(),
+                    machine=description(),
                     cpu_flags=cpu_flags(),
                     date=datetime.now(UTC).strftime("%Y-%m-%d"),
                     commit=tested,

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import argparse
 import pickle
-import platform
 import subprocess
 import sys
 import tempfile
@@ -60,7 +59,7 @@ def main():
     parser.add_argument("--episodes", type=int, default=3000)
     parser.add_argument("--seconds", type=float, default=5.0)
     args = parser.parse_args()
-    results = dict(machine=f"{platform.processor() or platform.machine()}, {platform.node()}", cores=2)
+    results = {}
 
     sim = Simulator(SIM_ROBOT, gravity="vertical")
     u = polynomial_excitation(args.episodes, int(round(args.seconds / DT)), np.random.default_rng(0))

@@ -4,15 +4,13 @@ speed the README quotes comes from a file anyone can regenerate with ``make benc
 
 from __future__ import annotations
 
-import os
-import platform
-import subprocess
 from datetime import UTC, datetime
 from pathlib import Path
 
 import pandas as pd
 
-from softflow.machine import cpu_model
+from softflow.machine import description
+from softflow.report.provenance import commit
 
 REPO = Path(__file__).resolve().parent.parent
 RESULTS = REPO / "figures" / "bench"
@@ -30,24 +28,10 @@ def _flat(results: dict, prefix: str = "") -> dict:
     return out
 
 
-def machine() -> str:
-    memory = ""
-    if Path("/proc/meminfo").exists():
-        memory = f", {int(Path('/proc/meminfo').read_text().split()[1]) / 2**20:.0f} GiB"
-    cpu = cpu_model()  # the same sandbox has come with CPUs of very different speeds: name the one measured
-    named = f"{platform.machine()} ({cpu})" if cpu else platform.machine()
-    return f"{named}, {os.cpu_count()} cores{memory}, Python {platform.python_version()}"
-
-
-def commit() -> str:
-    out = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=REPO, capture_output=True, text=True)
-    return out.stdout.strip() or "unknown"
-
-
 def write_results(name: str, results: dict) -> Path:
     """figures/bench/<name>.csv: quantity, value, machine, date (UTC), commit."""
     RESULTS.mkdir(parents=True, exist_ok=True)
-    stamp = dict(machine=machine(), date=datetime.now(UTC).strftime("%Y-%m-%d"), commit=commit())
+    stamp = dict(machine=description(), date=datetime.now(UTC).strftime("%Y-%m-%d"), commit=commit())
     rows = [dict(quantity=k, value=v, **stamp) for k, v in _flat(results).items()]
     path = RESULTS / f"{name}.csv"
     pd.DataFrame(rows).to_csv(path, index=False)

@@ -3,6 +3,8 @@ record (the same sandbox comes with CPUs of very different speeds and vector uni
 
 from __future__ import annotations
 
+import os
+import platform
 from pathlib import Path
 
 
@@ -16,3 +18,17 @@ def cpu_model() -> str:
         if line.startswith("model name")
     ]
     return models[0] if models else ""
+
+
+def description() -> str:
+    """One line about the machine: its CPU model named (machines of the same size have run this
+    code 2.5x apart in speed), cores, memory, Python and the OS."""
+    memory = ""
+    if Path("/proc/meminfo").exists():
+        kib = int(Path("/proc/meminfo").read_text().split()[1])
+        memory = f", {kib / 2**20:.0f} GiB memory"
+    cpu = cpu_model() or platform.processor()
+    return (
+        platform.machine() + (f" ({cpu})" if cpu else "") + f", {os.cpu_count()} cores{memory}, "
+        f"Python {platform.python_version()}, {platform.system()}"
+    )

@@ -3,14 +3,12 @@
 from __future__ import annotations
 
 import json
-import os
-import platform
 import subprocess
 from pathlib import Path
 
 import pandas as pd
 
-from softflow.machine import cpu_model
+from softflow.machine import description
 from softflow.store import REPO, write_text
 
 WALL_TIME_COLUMNS = ["minutes", "machine", "date", "commit"]
@@ -29,7 +27,7 @@ def recorded_wall_times(run_dir: Path, file: Path, running: str = "07") -> pd.Da
         else pd.DataFrame(columns=WALL_TIME_COLUMNS)
     )
     if len(minutes):
-        stamp = dict(machine=machine(), date=pd.Timestamp.now(tz="UTC").strftime("%Y-%m-%d"), commit=commit())
+        stamp = dict(machine=description(), date=pd.Timestamp.now(tz="UTC").strftime("%Y-%m-%d"), commit=commit())
         fresh = pd.DataFrame([dict(minutes=m, **stamp) for m in minutes], index=minutes.index)
         kept = pd.concat([kept.drop(fresh.index, errors="ignore"), fresh]).sort_index().rename_axis("notebook")
         write_text(file, kept.to_csv())
@@ -47,20 +45,6 @@ def notebook_wall_times(run_dir: Path, running: str = "07") -> pd.Series:
         if duration is not None:
             minutes[path.name] = duration / 60
     return pd.Series(minutes, name="minutes", dtype=float)
-
-
-def machine() -> str:
-    """One line about the machine the results were measured on, its CPU model named: machines of
-    the same size have run this code 2.5x apart in speed."""
-    memory = ""
-    if Path("/proc/meminfo").exists():
-        kib = int(Path("/proc/meminfo").read_text().split()[1])
-        memory = f", {kib / 2**20:.0f} GiB memory"
-    cpu = cpu_model() or platform.processor()
-    return (
-        platform.machine() + (f" ({cpu})" if cpu else "") + f", {os.cpu_count()} cores{memory}, "
-        f"Python {platform.python_version()}, {platform.system()}"
-    )
 
 
 def commit() -> str:
