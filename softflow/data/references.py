@@ -44,7 +44,6 @@ DEPTH_RADIUS = 0.05  # m
 DEPTH_SWING = 0.006  # m: the largest fall below the least-norm depth
 PATH3D_STARTS = (0, 120, 240)  # degrees: where on its circle each path starts (and its depth wave with it)
 REACH_TOLERANCE = 1e-6  # m: every sample of a 3-D path is an equilibrium tip to within this
-_NULL_STEP = 1e-3  # N: forward difference of d p / d u along the null space (the least-norm solution's rate)
 _STATIC_CHUNK = 128  # points fitted together (each Newton step perturbs every coordinate of each)
 
 
@@ -163,41 +162,6 @@ class StaticPath:
         return np.einsum("ksir,kr->ksi", self.rates, target_rate)
 
 
-def _disk_jacobians(sim: Simulator, u, q=None):
-    """The equilibrium q at u (K, m), every disk's position (K, S, 3) and d position / d u
-    = Jp Kt^-1 B (K, S, 3, m) there (docs/simulator.md, S3)."""
-    q, stiffness = statics.equilibrium(sim, u, q)
-    frames = sim.kinematics.frames(q)
-    ends = sim.kinematics.segment_ends
-    Jp = sim.kinematics.position_jacobians(frames)[:, ends]  # (K, S, 3, nq)
-    dq_du = np.linalg.solve(stiffness, np.broadcast_to(sim.cable_map, (len(u),) + sim.cable_map.shape))  # (K, nq, m)
-    return q, frames["positions"][:, ends], Jp @ dq_du[:, None]
-
-
-def _least_norm_rates(sim: Simulator, u, rows):
-    """Disk positions (K, S, 3) and their rates d position / d target (K, S, 3, r) at u (K, m), the
-    least-norm solution of p_rows(u) = target.
-
-    Along the solutions u*(t), J du = dt, and the gradient of |u|^2 / 2 stays normal to the set
-    that reaches t: N^T H du = 0, with N the null space of J = d p_rows / d u, H = I - sum_i
-    lambda_i d2 p_i the Hessian of the Lagrangian and lambda = J^+T u its multipliers. So
-    du/dt = (I - N (N^T H N)^-1 N^T H) J^+, where N^T H needs only d2 p_i N: a forward difference
-    of J along each null direction."""
-    q, positions, jacobians = _disk_jacobians(sim, u)
-    J = jacobians[:, -1, rows]  # (K, r, m)
-    pinv = np.linalg.pinv(J)  # (K, m, r)
-    null = np.linalg.svd(J)[2][:, len(rows) :].transpose(0, 2, 1)  # (K, m, k), orthonormal; k = 0 if m <= r
-    du_dt = pinv
-    if null.shape[2]:
-        multipliers = (pinv.transpose(0, 2, 1) @ u[..., None])[..., 0]  # (K, r)
-        projected = null.transpose(0, 2, 1).copy()  # N^T H, (K, k, m)
-        for a in range(null.shape[2]):
-            shifted = _disk_jacobians(sim, u + _NULL_STEP * null[:, :, a], q)[2][:, -1, rows]
-            projected[:, a] -= np.einsum("kr,krm->km", multipliers, (shifted - J) / _NULL_STEP)
-        du_dt = pinv - null @ np.linalg.solve(projected @ null, projected @ pinv)
-    return positions, jacobians @ du_dt[:, None]
-
-
 def least_norm_statics(sim: Simulator, target, rows, start) -> StaticPath:
     """The least-norm u whose equilibrium tip has ``target`` (K, 3) in coordinates ``rows``
     (``statics.fit_static`` from ``start`` (K, m)), its disks and their rates along the target.
@@ -212,7 +176,7 @@ def least_norm_statics(sim: Simulator, target, rows, start) -> StaticPath:
                 f"the path leaves the static workspace of {sim.robot.name!r} near samples {begin}.."
                 f"{min(begin + _STATIC_CHUNK, len(target)) - 1} (no equilibrium found)"
             ) from error
-        parts.append((u, *_least_norm_rates(sim, u, rows)))
+        parts.append((u, *statics.least_norm_rates(sim, u, rows)))
     return StaticPath(*(np.concatenate(part) for part in zip(*parts)))
 
 

@@ -99,13 +99,19 @@ def arc_actuation(robot: Robot, p):
     return np.concatenate([np.zeros((len(p), robot.n_inputs - 2)), arc], -1)
 
 
+def disk_jacobians(sim, q, Kt):
+    """Every disk's position (B, S, 3), base outwards with the tip last, and d position / d u =
+    Jp Kt^-1 B (B, S, 3, m) at the equilibrium q with tangent stiffness Kt (S3)."""
+    frames, ends = sim.kinematics.frames(q), sim.kinematics.segment_ends
+    Jp = sim.kinematics.position_jacobians(frames)[:, ends]  # (B, S, 3, nq)
+    dq_du = np.linalg.solve(Kt, np.broadcast_to(sim.cable_map, Kt.shape[:1] + sim.cable_map.shape))  # (B, nq, m)
+    return frames["positions"][:, ends], Jp @ dq_du[:, None]
+
+
 def _tip_jacobian(sim, q, Kt):
-    """Tip (B, 3) and d p / d u = Jp_tip Kt^-1 B (B, 3, m) at the equilibrium q with tangent stiffness Kt (S3)."""
-    f = sim.kinematics.frames(q)
-    J_tip = sim.kinematics.position_jacobians(f)[:, -1]  # (B, 3, nq)
-    return f["positions"][:, -1], J_tip @ np.linalg.solve(
-        Kt, np.broadcast_to(sim.cable_map, Kt.shape[:1] + sim.cable_map.shape)
-    )
+    """Tip (B, 3) and d p / d u (B, 3, m) at the equilibrium q (``disk_jacobians``' last disk)."""
+    positions, jacobians = disk_jacobians(sim, q, Kt)
+    return positions[:, -1], jacobians[:, -1]
 
 
 def _least_norm_step(sim, J, error, u, q, rows):
@@ -134,6 +140,31 @@ def _least_norm_step(sim, J, error, u, q, rows):
     null = -(N @ np.linalg.solve(H, N.transpose(0, 2, 1) @ u[..., None]))[..., 0]
     step = (pinv @ error[..., None])[..., 0] + null
     return _capped(step, sim.u_bound / 4), null
+
+
+def least_norm_rates(sim, u, rows):
+    """Disk positions (B, S, 3) and their rates d position / d target (B, S, 3, r) at u (B, m), the
+    least-norm solution of p_rows(u) = target (``fit_static``'s answer).
+
+    Along the solutions u*(t), J du = dt, and the gradient of |u|^2 / 2 stays normal to the set
+    that reaches t: N^T H du = 0, with N the null space of J = d p_rows / d u, H = I - sum_i
+    lambda_i d2 p_i the Hessian of the Lagrangian and lambda = J^+T u its multipliers (as in
+    ``_least_norm_step``). So du/dt = (I - N (N^T H N)^-1 N^T H) J^+, where N^T H needs only
+    d2 p_i N: a forward difference of J along each null direction."""
+    q, Kt = equilibrium(sim, u)
+    positions, jacobians = disk_jacobians(sim, q, Kt)
+    J = jacobians[:, -1, rows]  # (B, r, m)
+    pinv = np.linalg.pinv(J)  # (B, m, r)
+    null = np.linalg.svd(J)[2][:, len(rows) :].transpose(0, 2, 1)  # (B, m, k), orthonormal; k = 0 if m <= r
+    du_dt = pinv
+    if null.shape[2]:
+        multipliers = (pinv.transpose(0, 2, 1) @ u[..., None])[..., 0]  # (B, r)
+        projected = null.transpose(0, 2, 1).copy()  # N^T H, (B, k, m)
+        for a in range(null.shape[2]):
+            shifted = _tip_jacobian(sim, *equilibrium(sim, u + _CURVATURE_STEP * null[:, :, a], q))[1][:, rows]
+            projected[:, a] -= np.einsum("kr,krm->km", multipliers, (shifted - J) / _CURVATURE_STEP)
+        du_dt = pinv - null @ np.linalg.solve(projected @ null, projected @ pinv)
+    return positions, jacobians @ du_dt[:, None]
 
 
 def _capped(v, cap: float):
