@@ -61,7 +61,7 @@ def main():
     z = np.zeros((1, 2))
     window_t, z_t = torch.as_tensor(window, dtype=torch.float32), torch.as_tensor(z, dtype=torch.float32)
     results = dict(model=args.model, profile=profile.name, step={}, per_step={})
-    for name in ("mlp", "rf", "rf-physical", "rf-fwd", "rf-1", "rf-fwd-1"):
+    for name in ("mlp", "rf", "rf-physical", "rf-fwd", "rf-1", "rf-fwd-1", "rf-physical-1"):
         controller = control.Controller(training.ensure_trained(name, profile, dataset)[0], name)
         extras = {
             k: torch.as_tensor(v[0], dtype=torch.float32)

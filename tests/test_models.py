@@ -71,7 +71,7 @@ def test_a_changed_default_retrains_instead_of_reusing_the_checkpoint(dataset, t
     stamp = path.stat().st_mtime_ns
     training.train("mlp", dataset, QUICK, path, progress=False)
     assert path.stat().st_mtime_ns == stamp  # same arguments: reused
-    monkeypatch.setitem(models.MODELS, "mlp", models.ModelSpec(InverseMLP, {"hidden": 32}))
+    monkeypatch.setitem(models.MODELS, "mlp", models.ModelSpec(InverseMLP, "MLP", {"hidden": 32}))
     model, second = training.train("mlp", dataset, QUICK, path, progress=False)
     assert second["model_kwargs"] == {"hidden": 32, "layers": 3} and model.net[0].out_features == 32
 

@@ -46,7 +46,7 @@ def test_the_rules_on_rows_where_the_one_step_flow_keeps_its_parents_errors():
     assert collapse.at["rf@1", "within_10_percent"] == "within"  # the collapse the theory predicts
     assert collapse.at["rf-fwd@1", "within_10_percent"] == "outside"
     win = tables["tip_win"].set_index("model")
-    assert win.at["rf-1@1", "verdict"] == "rf-1@1 lower"  # 18 % below the MLP on every reference
+    assert win.at["rf-1@1", "verdict"] == "RF-1@1 lower"  # 18 % below the MLP on every reference
     assert win.at["rf-fwd-1@1", "verdict"] == "no ranking"  # the MLP's errors exactly
     assert (win["holm_p"] >= win["t_p"]).all()
 
@@ -73,4 +73,4 @@ def test_the_readme_states_each_rules_words():
     assert (said["computed"], said["cells"]) == (15, 30)  # 5 plans x 3 seeds, as keys
     assert said["parity"] == dict(range="1.02x", tally="within in 1 of 1", comparisons=1)
     assert said["collapse"]["tally"] == "within in 1 of 1" and said["collapse"]["comparisons"] == 1
-    assert {d["model"]: d["verdict"] for d in said["tip_win"]} == {"rf-1@1": "rf-1@1 lower", "rf-fwd-1@1": "no ranking"}
+    assert {d["model"]: d["verdict"] for d in said["tip_win"]} == {"RF-1@1": "RF-1@1 lower", "RF-FWD-1@1": "no ranking"}

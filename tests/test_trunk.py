@@ -67,7 +67,7 @@ def made_rows(naive_gap: float) -> pd.DataFrame:
 
 def test_the_rule_ranks_where_both_intervals_agree_and_the_judge_tells_naive_from_recorded():
     rule = trunk.flow_rule(made_rows(naive_gap=4.0)).set_index("observation")
-    assert rule.loc["tip", "verdict"] == "rf lower" and rule.loc["tip", "difference_mm"] == pytest.approx(-1, abs=0.05)
+    assert rule.loc["tip", "verdict"] == "RF lower" and rule.loc["tip", "difference_mm"] == pytest.approx(-1, abs=0.05)
     assert rule.loc["disks", "verdict"] == "no ranking"
     check = trunk.judge_check(made_rows(naive_gap=4.0)).set_index("planner")
     assert check.tells_apart["training-mean"] and not check.tells_apart["persistence"]  # persistence gates nothing
@@ -77,12 +77,16 @@ def test_the_answer_to_notebook_12_reads_the_verdicts_that_survive_holm():
     assert trunk.notebook_12_answer(trunk.flow_rule(made_rows(naive_gap=4.0))) == "confirms"  # rf lower at the tip
     assert trunk.notebook_12_answer(trunk.flow_rule(made_rows(naive_gap=0.0))) == "neither"  # the judge ranks nothing
 
-    def rule(tip, disks):
-        return pd.DataFrame(dict(observation=["tip", "disks"], verdict=[tip, disks]))
+    def rule(tip, disks):  # (best flow, verdict) from the tip alone and with every disk
+        return pd.DataFrame(
+            dict(observation=["tip", "disks"], best_flow=[tip[0], disks[0]], verdict=[tip[1], disks[1]])
+        )
 
-    assert trunk.notebook_12_answer(rule("rf-fwd lower (not after Holm)", "rf-fwd lower")) == "reverses"
-    assert trunk.notebook_12_answer(rule("rf lower", "rf-fwd lower")) == "both"
-    assert trunk.notebook_12_answer(rule("mlp lower", "no ranking")) == "neither"
+    assert trunk.notebook_12_answer(rule(("rf-fwd", "RF-FWD lower (not after Holm)"), ("rf-fwd", "RF-FWD lower"))) == (
+        "reverses"
+    )
+    assert trunk.notebook_12_answer(rule(("rf", "RF lower"), ("rf-fwd", "RF-FWD lower"))) == "both"
+    assert trunk.notebook_12_answer(rule(("rf", "MLP lower"), ("rf-fwd", "no ranking"))) == "neither"
 
 
 def test_a_judge_that_cannot_tell_the_training_mean_from_its_floor_ranks_nothing():
@@ -113,7 +117,7 @@ def test_the_results_paragraph_says_the_gate_each_verdict_and_the_spread():
     paragraph = page.trunk_summary(trunk.summarise(rows), rows["key"].nunique(), 33)
     assert "(11 of the study's 33 cells have rows)" in paragraph
     assert "telling them apart on 1 of 1 families" in paragraph
-    assert "observing tip: f -" in paragraph and "(rf against mlp: rf lower)" in paragraph
-    assert "(rf against mlp: no ranking)" in paragraph
+    assert "observing tip: f -" in paragraph and "(RF against MLP: RF lower)" in paragraph
+    assert "(RF against MLP: no ranking)" in paragraph
     assert "tip 2.0x, disks 1.0x" in paragraph
     assert "no cell has rows yet" in page.trunk_summary({}, 0, 33)

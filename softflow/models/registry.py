@@ -22,25 +22,33 @@ from .forward import ForwardModel
 @dataclass(frozen=True)
 class ModelSpec:
     cls: type
+    label: str  # the name tables and verdicts print ("" for RF-FWD's surrogate, never one of theirs)
     kwargs: dict = field(default_factory=dict)
     requires: tuple[str, ...] = ()  # models trained first and passed to ``attach`` by name
 
 
 MODELS = {
-    "mlp": ModelSpec(InverseMLP),
-    "mlp-physical": ModelSpec(PhysicalMLP),
-    "lstm": ModelSpec(InverseLSTM, {"context": 10}),
-    "transformer": ModelSpec(InverseTransformer, {"context": 10}),
-    "forward": ModelSpec(ForwardModel),
-    "rf": ModelSpec(RectifiedFlow),
-    "rf-physical": ModelSpec(RectifiedFlow, {"prior": True}),
-    "rf-fwd": ModelSpec(RectifiedFlow, {"consistency": 1.0}, requires=("forward",)),
-    "rf-1": ModelSpec(MeanFlow, {"steps": 1}),
-    "rf-fwd-1": ModelSpec(MeanFlow, {"steps": 1, "consistency": 1.0}, requires=("forward",)),
-    "rf-physical-1": ModelSpec(MeanFlow, {"steps": 1, "prior": True}),
+    "mlp": ModelSpec(InverseMLP, "MLP"),
+    "mlp-physical": ModelSpec(PhysicalMLP, "MLP-Physical"),
+    "lstm": ModelSpec(InverseLSTM, "LSTM", {"context": 10}),
+    "transformer": ModelSpec(InverseTransformer, "Transformer", {"context": 10}),
+    "forward": ModelSpec(ForwardModel, ""),
+    "rf": ModelSpec(RectifiedFlow, "RF"),
+    "rf-physical": ModelSpec(RectifiedFlow, "RF-Physical", {"prior": True}),
+    "rf-fwd": ModelSpec(RectifiedFlow, "RF-FWD", {"consistency": 1.0}, requires=("forward",)),
+    "rf-1": ModelSpec(MeanFlow, "RF-1", {"steps": 1}),
+    "rf-fwd-1": ModelSpec(MeanFlow, "RF-FWD-1", {"steps": 1, "consistency": 1.0}, requires=("forward",)),
+    "rf-physical-1": ModelSpec(MeanFlow, "RF-Physical-1", {"steps": 1, "prior": True}),
 }
 # What load_controller loads: every inverse model, not RF-FWD's forward surrogate.
 CONTROLLERS = tuple(name for name, spec in MODELS.items() if spec.cls is not ForwardModel)
+
+
+def label(name: str) -> str:
+    """The printed name of model ``name`` (``MODELS``); a plan of it at k steps, ``name@k``, is
+    ``label@k`` (k = 0: a regression, which has no steps)."""
+    model, _, steps = name.partition("@")
+    return model_spec(model).label + (f"@{steps}" if steps not in ("", "0") else "")
 
 
 def model_spec(name: str) -> ModelSpec:

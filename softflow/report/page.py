@@ -12,6 +12,7 @@ from pathlib import Path
 import pandas as pd
 
 from softflow.machine import description
+from softflow.models.registry import label
 from softflow.profiles import Profile
 from softflow.report.provenance import commit, recorded_wall_times
 from softflow.report.study_tables import (
@@ -628,8 +629,8 @@ def trunk_summary(tables: dict, computed: int, cells: int | None) -> str:
     ]
     for observation, part in rule.groupby("observation", sort=False) if len(rule) else ():
         said = [
-            f"{row.family} {row.difference_mm:+.2f} mm [{row.low:+.2f}, {row.high:+.2f}] ({row.best_flow} against "
-            f"{row.best_baseline}: {row.verdict})"
+            f"{row.family} {row.difference_mm:+.2f} mm [{row.low:+.2f}, {row.high:+.2f}] "
+            f"({LABELS[row.best_flow]} against {LABELS[row.best_baseline]}: {row.verdict})"
             for row in part.itertuples()
         ]
         sentences.append(f"Best flow minus best baseline observing {observation}: {'; '.join(said)}.")
@@ -667,13 +668,13 @@ def one_step_summary(tables: dict, computed: int, cells: int | None) -> str:
 
     def ratios(table: pd.DataFrame) -> str:
         return "; ".join(
-            f"{row.model} over {row.other} on the {row.rod} rod's {row.family} references {row.ratio:.2f}x "
-            f"[{row.low:.2f}, {row.high:.2f}] ({row.within_10_percent})"
+            f"{label(row.model)} over {label(row.other)} on the {row.rod} rod's {row.family} references "
+            f"{row.ratio:.2f}x [{row.low:.2f}, {row.high:.2f}] ({row.within_10_percent})"
             for row in table.itertuples()
         )
 
     sentences = [
-        f"The one-step study ({done}; a plan is `model@steps`, the ratio's interval the two-way bootstrap paired over "
+        f"The one-step study ({done}; a plan is model@steps, the ratio's interval the two-way bootstrap paired over "
         f"references; within 10 % means the interval inside [{one_step.BAND[0]}, {one_step.BAND[1]}])."
     ]
     if len(tables["parity"]):
@@ -683,7 +684,7 @@ def one_step_summary(tables: dict, computed: int, cells: int | None) -> str:
     win = tables["tip_win"]
     if len(win):
         said = [
-            f"{row.model} minus {row.other} on the {row.family} references {row.difference_mm:+.2f} mm "
+            f"{label(row.model)} minus {label(row.other)} on the {row.family} references {row.difference_mm:+.2f} mm "
             f"[{row.low:+.2f}, {row.high:+.2f}] ({row.verdict})"
             for row in win.itertuples()
         ]

@@ -11,6 +11,7 @@ import numpy as np
 import pandas as pd
 
 from softflow.control.metrics import table_rows
+from softflow.models.registry import MODELS as MODEL_SPECS
 from softflow.profiles import Profile
 from softflow.rod.robots import HW_ROBOT
 from softflow.store import DATA_DIR, write_text
@@ -25,19 +26,7 @@ COLUMNS = {
 MODELS = ["mlp", "lstm", "transformer", "rf", "rf-physical", "rf-fwd"]
 BASELINES, RF_FAMILY = MODELS[:3], MODELS[3:]
 
-LABELS = {
-    "mlp": "MLP",
-    "lstm": "LSTM",
-    "transformer": "Transformer",
-    "rf": "RF",
-    "rf-physical": "RF-Physical",
-    "rf-fwd": "RF-FWD",
-    "rf-1": "RF-1",
-    "rf-fwd-1": "RF-FWD-1",
-    "rf-physical-1": "RF-Physical-1",
-    "mlp-physical": "MLP-Physical",
-    FLOOR: "ILC floor (true simulator)",
-}
+LABELS = {name: spec.label for name, spec in MODEL_SPECS.items() if spec.label} | {FLOOR: "ILC floor (true simulator)"}
 # Where each result comes from: file -> notebook that writes it.
 SOURCES = {
     "results_baselines.csv": "03_baselines.ipynb",

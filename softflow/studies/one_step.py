@@ -30,6 +30,7 @@ import pandas as pd
 
 from softflow import data, training
 from softflow.control.planning import Controller, evaluate
+from softflow.models.registry import label
 from softflow.profiles import FIXED_BUDGET, get_profile
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import SIM_ROBOT, TWO_SEGMENT_ROD
@@ -129,7 +130,7 @@ def summarise(rows: pd.DataFrame) -> dict[str, pd.DataFrame]:
                     )
     win = pd.DataFrame(win)
     if len(win):
-        win = stats.family_verdicts(win, lambda index, row: (row["model"], row["other"]))
+        win = stats.family_verdicts(win, lambda index, row: (label(row["model"]), label(row["other"])))
     rmse = stats.summarise(plans, "rmse_mm", by=("rod", "family", "model"))
     return dict(rmse=rmse, parity=pd.DataFrame(parity), tip_win=win, collapse=pd.DataFrame(collapse))
 

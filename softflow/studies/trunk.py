@@ -38,6 +38,7 @@ import torch
 from softflow import data, training
 from softflow.control.planning import Controller, recorded_range
 from softflow.data import recordings
+from softflow.models.registry import label
 from softflow.profiles import FIXED_BUDGET, TrainConfig
 from softflow.store import REPO, cache_file, cached_arrays
 from softflow.studies import ambiguity, stats
@@ -402,7 +403,7 @@ def flow_rule(rows: pd.DataFrame) -> pd.DataFrame:
     if table.empty:
         return table
     judged_by = table.family.isin(trusted)
-    names = lambda index, row: (row.best_flow, row.best_baseline)  # noqa: E731
+    names = lambda index, row: (label(row.best_flow), label(row.best_baseline))  # noqa: E731
     ranked = stats.family_verdicts(table[judged_by], names) if judged_by.any() else table[judged_by]
     untrusted = table[~judged_by].assign(
         holm_p=np.nan, verdict=f"no ranking (the judge does not tell the {GATE} input from the recorded inputs)"
@@ -427,12 +428,8 @@ def notebook_12_answer(rule: pd.DataFrame) -> str:
     every disk is seen? From ``flow_rule``'s verdicts that survive Holm: "confirms" (a flow lower
     on some family from the tip alone, on none with every disk), "reverses" (the other way round),
     "both" (a flow lower either way) or "neither" (no flow lower either way)."""
-    flows_lower = {
-        observation: any(
-            verdict.endswith(" lower") and verdict.removesuffix(" lower") in FLOWS for verdict in part.verdict
-        )
-        for observation, part in rule.groupby("observation")
-    }
+    flow_lower = rule.verdict == rule.best_flow.map(label) + " lower"  # not "... (not after Holm)"
+    flows_lower = flow_lower.groupby(rule.observation).any()
     tip, disks = flows_lower.get("tip", False), flows_lower.get("disks", False)
     return {(True, False): "confirms", (False, True): "reverses", (True, True): "both"}.get((tip, disks), "neither")
 
