@@ -260,7 +260,7 @@ def _rendered(template: str, context: dict) -> str:
     return _wrapped(environment.from_string((TEMPLATES / template).read_text()).render(**context))
 
 
-def _wrapped(markdown: str, width: int = 100) -> str:
+def _wrapped(markdown: str, width: int = 110) -> str:
     """Each paragraph of ``markdown`` refilled to ``width`` columns; tables left as they are."""
     paragraphs = [p.strip() for p in markdown.strip().split("\n\n") if p.strip()]
     return "\n\n".join(
