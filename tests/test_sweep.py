@@ -178,6 +178,27 @@ def test_a_sweep_never_drops_shipped_rows_of_cells_it_does_not_know(tmp_path, sw
     assert pd.read_csv(again.csv)["score"].tolist() == [0, 0.25, 0.5, 1, 1.25, 1.5]
 
 
+def test_two_sweeps_on_disjoint_cells_ship_each_others_rows(tmp_path, sweep_dirs, monkeypatch):
+    """Two processes sweeping disjoint cells of one study (``where``) share the cache; whichever
+    finishes last writes the shipped CSV, and it must hold the rows the other computed meanwhile."""
+
+    def run_and_meanwhile_the_other_sweep_finishes(cell, profile_name, device, workdir, key):
+        if cell["seed"] == 0:  # the other process: seed 1's cell lands in the cache while seed 0 runs
+            other = _per_reference_cells(profile_name)[1]
+            other_key = sweep.cell_key("multi", other, profile_name, device)
+            rows = sweep._row(_per_reference_run, other, profile_name, device, workdir, other_key)
+            workdir.mkdir(parents=True, exist_ok=True)
+            (workdir / f"{other_key}.json").write_text(rows)  # the cache both sweeps share
+        return _per_reference_run(cell, profile_name, device, workdir, key)
+
+    monkeypatch.setitem(sweep.STUDIES, "multi", Study(_per_reference_cells, run_and_meanwhile_the_other_sweep_finishes))
+    done = sweep.run_sweep("multi", "paper", client=None, device="cpu", progress=False, where={"seed": ["0"]})
+    assert (done.computed, done.missing, done.failures) == (1, 1, [])  # it counts what it computed
+    shipped = pd.read_csv(tmp_path / "shipped" / "multi-paper.csv")
+    assert shipped["seed"].tolist() == [0, 0, 0, 1, 1, 1]  # both sweeps' rows, in grid order
+    assert shipped["score"].tolist() == [0, 0.25, 0.5, 1, 1.25, 1.5]
+
+
 def test_a_sweep_that_must_not_compute_returns_the_rows_present_and_writes_nothing(tmp_path, sweep_dirs, monkeypatch):
     """compute_missing=False (a notebook showing a study of hours): no cell runs, the rows present
     come back in grid order with the number of cells that have none, and no CSV is written (a

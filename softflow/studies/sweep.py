@@ -169,10 +169,13 @@ def run_sweep(
         else:
             write_text(workdir / f"{key}.json", outcome)
             rows[key] = json.loads(outcome)
+            rows |= _finished_elsewhere(rows, keys, workdir)
             _write_tables(rows, keys, csv, shipped_csv, shipped)  # as they come: a long sweep can be committed
         bar.update(1)
     bar.close()
-    table = _write_tables(rows, keys, csv, None if shipped else shipped_csv, shipped)  # new rows shipped as they came
+    elsewhere = _finished_elsewhere(rows, keys, workdir)  # since this sweep's last cell
+    rows |= elsewhere
+    table = _write_tables(rows, keys, csv, shipped_csv if elsewhere or not shipped else None, shipped)
     return SweepResult(
         csv,
         table,
@@ -215,6 +218,13 @@ def _write_tables(rows: dict, keys, csv: Path, shipped_csv: Path | None, shipped
     if shipped_csv is not None and len(table) and (shipped or len(rows) == len(keys)):
         write_text(shipped_csv, table.to_csv(index=False))
     return table
+
+
+def _finished_elsewhere(rows: dict, keys, workdir: Path) -> dict:
+    """The cached rows of cells that another sweep of the same cache (``--where`` on disjoint
+    cells, in another process) finished after this one read the cache: the CSVs this one writes
+    hold them too, so the last sweep to finish does not drop the others' rows."""
+    return {key: cached for key in keys if key not in rows and (cached := _cached_rows(workdir / f"{key}.json"))}
 
 
 def _table(rows: dict, keys) -> pd.DataFrame:
