@@ -512,6 +512,7 @@ def test_results_page_holds_every_table_and_section_and_only_existing_figures(pr
         "## Learning from recorded runs (notebook 13)",
         "## A real robot: the ASL trunk (notebook 14)",
         "## A flow in one step (notebook 15)",
+        "## Where the rows were computed",
         "## Numbers across CPUs",
         "## The paper's claims, reproduced or not",
         "## Design choices",
@@ -586,3 +587,14 @@ def test_portability_section_shows_each_path_and_the_largest_spread_per_file(pro
     spread = text.split("per file")[1]
     assert spread.index("b.csv") < spread.index("a.csv")  # largest first
     assert "0.00059" in spread
+
+
+def test_a_study_whose_rows_come_from_several_machines_says_so(profile):
+    assert report.page.machines_section(profile) == []  # no rows shipped: nothing to say
+    write_sweep(profile, "old", pd.DataFrame(dict(score=[1.0, 2.0])))  # before the machine column
+    write_sweep(profile, "one", pd.DataFrame(dict(score=[1.0, 2.0], machine=["AMD EPYC", "AMD EPYC"])))
+    write_sweep(profile, "mixed", pd.DataFrame(dict(score=[1.0, 2.0, 3.0], machine=["Xeon", None, "Xeon"])))
+    text = "\n".join(report.page.machines_section(profile))
+    assert "| mixed | Xeon (2 rows), not recorded (1 row) |" in text and "| old | not recorded (2 rows) |" in text
+    assert "| one | AMD EPYC (2 rows) |" in text
+    assert "different or unknown machines: mixed." in text

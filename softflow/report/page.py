@@ -34,6 +34,7 @@ from softflow.report.tables import (
     LABELS,
     RF_FAMILY,
     computed_rows,
+    machine_counts,
     markdown,
     our_table,
     read_result,
@@ -751,6 +752,29 @@ def portability_section(profile: Profile) -> list[str]:
     return lines
 
 
+def machines_section(profile: Profile) -> list[str]:
+    """Which CPUs computed each study's shipped rows: a table that mixes machines says so here
+    (CPUs differ in the last bits of what they train, docs/assumptions.md)."""
+    counts = {
+        path.name.removesuffix(f"-{profile.name}.csv"): machine_counts(pd.read_csv(path, low_memory=False))
+        for path in sorted((profile.output_dir / "sweeps").glob(f"*-{profile.name}.csv"))
+    }
+    if not counts:
+        return []
+    said = {study: ", ".join(f"{m} ({n} row{'s' * (n != 1)})" for m, n in c.items()) for study, c in counts.items()}
+    table = pd.Series(said, name="machines").rename_axis("study").to_frame()
+    mixed = [study for study, c in counts.items() if len(c) > 1]
+    return [
+        "## Where the rows were computed",
+        "",
+        "The CPU of each study's shipped rows, as the rows record it (`machine`; rows made before that column "
+        f"was added say nothing). Tables that mix rows of different or unknown machines: {', '.join(mixed) or 'none'}.",
+        "",
+        markdown(table),
+        "",
+    ]
+
+
 def results_page(profile: Profile, tables: dict, run_dir: Path) -> str:
     """docs/results.md: machine, commit, wall times, Tables I-IV, the paper's claims, key figures."""
     times = recorded_wall_times(run_dir, profile.output_dir / "bench" / WALL_TIMES)
@@ -798,6 +822,7 @@ def results_page(profile: Profile, tables: dict, run_dir: Path) -> str:
     lines += recorded_section(profile)
     lines += trunk_section(profile)
     lines += one_step_section(profile)
+    lines += machines_section(profile)
     lines += portability_section(profile)
     lines += ["## The paper's claims, reproduced or not", "", markdown(claims(profile)), ""]
     lines += design_choices(profile)

@@ -118,6 +118,13 @@ def read_sweep(profile: Profile, study: str) -> pd.DataFrame:
     )
 
 
+def machine_counts(rows: pd.DataFrame) -> pd.Series:
+    """How many of ``rows`` each CPU computed (their ``machine`` column), most first; rows from
+    before the column existed count as "not recorded"."""
+    named = rows["machine"] if "machine" in rows else pd.Series("not recorded", index=rows.index)
+    return named.fillna("not recorded").value_counts()
+
+
 def computed_rows(profile: Profile, study: str) -> pd.DataFrame:
     """``read_sweep``'s rows, or an empty frame (its ``key`` column only) where the study has not
     run in this profile: what a page shows of a study as far as it is computed."""
