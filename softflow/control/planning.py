@@ -118,8 +118,9 @@ class Controller:
         loop that adds its own correction first). A state outside the workspace is refused, as
         ``plan`` refuses a reference: a units slip must not command full actuation. RF-Physical's
         prior comes from the inverse-statics grid (``InverseGrid``, within 1e-3 N of ``plan``'s
-        table) rather than the table's 12 Gauss-Newton steps: 0.03 ms instead of 1 ms. Models that
-        read a window of past states (LSTM, Transformer) have no step: ``plan`` them."""
+        table) rather than the table's 12 Gauss-Newton steps (``make bench`` times both,
+        ``prior.grid_ms`` and ``prior.table_ms``). Models that read a window of past states (LSTM,
+        Transformer) have no step: ``plan`` them."""
         if self.lean is None:
             raise ValueError(
                 f"{self.name} reads a window of {self.model.context} past transitions: it has no "
