@@ -48,6 +48,21 @@ class Profile:
     identification_seconds: float = 3.0  # s of excitation filmed for system identification (notebook 10)
     # (rod name, budget) pairs: a rod whose models are all trained with one budget of its own
     rod_train: tuple[tuple[str, TrainConfig], ...] = ()
+    # What the notebooks run beyond the studies (a study's own sizes are in its grid):
+    # notebook 03's size sweep, (model, argument, values)
+    baseline_sizes: tuple[tuple[str, str, tuple[int, ...]], ...] = (
+        ("mlp", "hidden", (128, 256, 512)),
+        ("lstm", "hidden", (64, 128, 256)),
+        ("transformer", "d_model", (32, 64)),
+    )
+    complex3d_per_seed: int = 5  # notebook 05: random 3-D references per seed
+    spread_draws: int = 32  # notebook 05: noise draws per reference for RF-FWD's spread
+    stroboscope: tuple[str, ...] = ("star", "burst_circle")  # notebook 06's pictures
+    frictions: tuple[float, ...] = (0.0, 0.05, 0.15, 0.3)  # notebook 13's hysteresis loops, mu
+    held_out_delays: bool = True  # notebook 14: every run's delay estimate, not only the training run's
+    # Notebooks 12-15 compute a study's missing cells (ci: minutes), or show its shipped rows as
+    # far as computed (paper: hours of cells, which `softflow sweep` runs).
+    computes_studies: bool = False
 
     def train_config(self, model: str, robot: str | None = None) -> TrainConfig:
         """The training budget of ``model`` in this profile; for the rod named ``robot``, its own
@@ -65,9 +80,14 @@ class Profile:
         return dict(n_episodes=self.n_episodes, episode_seconds=self.episode_seconds, seed=self.seed)
 
     @property
+    def ships(self) -> bool:
+        """The paper run: its figures, tables, results page and seed-0 models are the committed ones."""
+        return self.name == "paper"
+
+    @property
     def output_dir(self) -> Path:
         """Figures and tables: committed figures/ for the paper run, build/ci otherwise."""
-        return REPO / "figures" if self.name == "paper" else REPO / "build" / self.name
+        return REPO / "figures" if self.ships else REPO / "build" / self.name
 
 
 # One budget for every model, RF-FWD's surrogate too (the paper's: 40 epochs of 500 steps, no early
@@ -87,6 +107,13 @@ PROFILES = {
         identification_seconds=1.5,
         train=TrainConfig(epochs=2, steps_per_epoch=150, batch_size=256, warmup_steps=50, val_samples=5000, patience=3),
         rod_train=(("two", FIXED_BUDGET["ci"]),),
+        baseline_sizes=(("mlp", "hidden", (128, 256)),),  # two sizes exercise the code every model's sizes run
+        complex3d_per_seed=2,
+        spread_draws=8,
+        stroboscope=("star",),  # the committed notebooks stay under 1.5 MB
+        frictions=(0.15,),  # FRICTION_GAP's (tests/test_friction.py checks the others)
+        held_out_delays=False,
+        computes_studies=True,
     ),
     "paper": Profile(
         "paper",

@@ -79,7 +79,7 @@ def rod_references(robot, gravity) -> list[np.ndarray]:
     if robot == HW_ROBOT:
         made = data.hardware_references(sim)
     elif robot == TWO_SEGMENT_ROD:
-        made = two_segment.references(sim, "paper", names=list(two_segment.TWO_SEGMENT["paper"]["shapes"]))
+        made = two_segment.references(sim, "paper", names=list(two_segment.TWO_SEGMENT["paper"].shapes))
     else:
         made = data.evaluation_references(sim)
     return [r.states for r in made]

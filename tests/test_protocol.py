@@ -76,8 +76,8 @@ def test_the_ci_protocol_shapes_ship(sim, tmp_path, monkeypatch):
     """The shapes of the ci protocol study's speed cells ship in cache/ (test_shipped_rows runs
     one of them): found under today's key, read, not built (the test below builds its own)."""
     monkeypatch.setattr(references, "DATA_DIR", tmp_path)
-    shapes = protocol.shapes_at(sim, TABLE1["ci"]["shapes"], 0.5)
-    assert [r.name for r in shapes] == list(TABLE1["ci"]["shapes"]) and not any(tmp_path.iterdir())
+    shapes = protocol.shapes_at(sim, TABLE1["ci"].shapes, 0.5)
+    assert [r.name for r in shapes] == list(TABLE1["ci"].shapes) and not any(tmp_path.iterdir())
 
 
 def test_shapes_at_a_speed_are_faster(sim):

@@ -59,8 +59,8 @@ def test_the_ci_grid_is_the_pre_registered_one():
     seed 0 with data_size's ci budget, the ci profile's simulator-trained RF-FWD open; the circle."""
     assert recorded.cells("ci") == CI_CELLS
     grid = recorded.RECORDED["ci"]
-    assert grid["seconds"] == 1.0 and grid["held_out"] == 4 and list(grid["trained"]) == [("friction", 8)]
-    assert grid["train"] == TrainConfig(
+    assert grid.seconds == 1.0 and grid.held_out == 4 and list(grid.trained) == [("friction", 8)]
+    assert grid.train == TrainConfig(
         epochs=3, steps_per_epoch=100, batch_size=256, warmup_steps=20, val_samples=2000, patience=3
     )
     assert recorded.GAPS["friction"] == hardware.FRICTION_GAP and recorded.GAPS["typical"] == hardware.TYPICAL_GAP
@@ -74,8 +74,8 @@ def test_the_paper_grid_is_the_pre_registered_one():
     cells = recorded.cells("paper")
     assert len(cells) == 78
     grid = recorded.RECORDED["paper"]
-    assert grid["seconds"] == 5.0 and grid["held_out"] == 60 and grid["draws"] == 16
-    assert grid["train"] == TrainConfig(epochs=40, steps_per_epoch=500, patience=40) and grid["train"].batch_size == 512
+    assert grid.seconds == 5.0 and grid.held_out == 60 and grid.draws == 16
+    assert grid.train == TrainConfig(epochs=40, steps_per_epoch=500, patience=40) and grid.train.batch_size == 512
     for gravity in ("vertical", "horizontal"):
         mine = [c for c in cells if c["gravity"] == gravity]
         trained = Counter((c["gap"], c["runs"] * 5 / 60, c["model"]) for c in mine if c["trained_on"] == "recordings")
@@ -214,8 +214,8 @@ def test_changing_how_runs_are_recorded_rekeys_the_rows_of_their_models(monkeypa
     assert len(set(before)) == 3
     for change in (
         lambda: monkeypatch.setattr(recorder, "RECORDER_VERSION", recorder.RECORDER_VERSION + 1),
-        lambda: monkeypatch.setitem(recorded.RECORDED["ci"], "seconds", 3.0),
-        lambda: monkeypatch.setitem(recorded.RECORDED["ci"], "held_out", 5),
+        lambda: monkeypatch.setitem(recorded.RECORDED, "ci", dataclasses.replace(recorded.RECORDED["ci"], seconds=3.0)),
+        lambda: monkeypatch.setitem(recorded.RECORDED, "ci", dataclasses.replace(recorded.RECORDED["ci"], held_out=5)),
     ):
         change()
         after = keys()

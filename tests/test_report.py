@@ -1,6 +1,7 @@
 """Tables from result CSVs: the paper's numbers beside ours, Markdown, and clear errors."""
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pandas as pd
@@ -20,7 +21,7 @@ def profile(tmp_path, monkeypatch):
     monkeypatch.setattr(profiles, "REPO", tmp_path)
     p = profiles.Profile("report-test", n_episodes=1)
     p.output_dir.mkdir(parents=True)
-    monkeypatch.setitem(TABLE1, p.name, {**TABLE1["ci"], "ilc_iterations": ILC_TRIALS})
+    monkeypatch.setitem(TABLE1, p.name, replace(TABLE1["ci"], ilc_iterations=ILC_TRIALS))
     return p
 
 

@@ -180,9 +180,9 @@ def test_the_shipped_references_are_what_their_key_computes(sim):
     today's key (minutes of least-norm static solves a fresh clone's notebook 12 skips); samples of
     the shipped circle are the least-norm lift of their y-z, tip and middle disk."""
     grid = two_segment.TWO_SEGMENT
-    builds = {f"two-segment-{name}": two_segment._shape(name) for name in grid["paper"]["shapes"]}
+    builds = {f"two-segment-{name}": two_segment._shape(name) for name in grid["paper"].shapes}
     builds |= {f"two-segment-path3d-{a}": two_segment._path(a) for a in references.PATH3D_STARTS}
-    builds[f"two-segment-random-{grid['ci']['n_random']}"] = two_segment._random(grid["ci"]["n_random"])
+    builds[f"two-segment-random-{grid['ci'].n_random}"] = two_segment._random(grid["ci"].n_random)
     assert [kind for kind, build in builds.items() if shipped_references(sim, kind, build) is None] == []
     circle = shipped_references(sim, "two-segment-circle", builds["two-segment-circle"])
     samples = circle["states_0"][np.flatnonzero(circle["mask_0"])[::200]]  # (K, 12): tip, disk, their velocities
@@ -218,7 +218,7 @@ def test_the_floor_start_runs_linear_over_a_step_whose_least_norm_fit_does_not_c
 def test_the_rods_own_budget_is_the_one_its_study_trains_with(profile):
     """So the study's seed-0 models, shipped, are what load_controller and `softflow train
     --robot two` look for; every other rod keeps its profile's per-model budgets."""
-    study = two_segment._budget(profile)
+    study = two_segment.TWO_SEGMENT[profile].budget(profile)
     for model in ("mlp", "lstm", "transformer", "rf", "rf-fwd", "forward"):
         assert get_profile(profile).train_config(model, TWO_SEGMENT_ROD.name) == study.train_config(model)
         assert get_profile(profile).train_config(model, SIM_ROBOT.name) == get_profile(profile).train_config(model)
@@ -259,10 +259,10 @@ def test_a_two_segment_model_loads_plans_and_steps(tiny, sim, tmp_path, monkeypa
 def test_the_study_runs_in_process_and_scores_every_observation(sim, tmp_path, monkeypatch):
     """The ci grid's machinery on a small dataset and one random reference: a model of each
     observation, every column the pre-registration lists."""
-    grid = dict(
+    grid = dataclasses.replace(
         two_segment.TWO_SEGMENT["ci"],
         data=SMALL,
-        models={"tip": ("mlp",), "tip+disk": ("rf",)},
+        observations={"tip": ("mlp",), "tip+disk": ("rf",)},
         shapes=(),
         n_random=1,
         paths=0,

@@ -95,7 +95,7 @@ def claims(profile: Profile) -> pd.DataFrame:
     summary = read_result(profile, "08_table1_ci.csv").set_index(["family", "model"])["mean"]
     seeds = read_sweep(profile, "table1")
     differences = best_against_best(seeds)
-    improving, references = floor_progress(seeds, TABLE1[profile.name]["ilc_iterations"])
+    improving, references = floor_progress(seeds, TABLE1[profile.name].ilc_iterations)
     protocol = read_result(profile, "08_protocol.csv").set_index("condition")
     models = summary.drop(index=FLOOR, level="model")
     ratio = {f: models.loc[f] / summary.loc[(f, FLOOR)] for f in ("shape", "random")}
@@ -220,7 +220,7 @@ def trust_section(profile: Profile) -> list[str]:
         "",
         f"Mean RMSE (mm) [95 % two-way bootstrap interval over {counts.seeds.max()} training seeds and "
         f"{counts.loc['shape', 'references']} shapes / {counts.loc['random', 'references']} random references; "
-        f"seed 0 is the shipped model]. {floor_note(seeds, TABLE1[profile.name]['ilc_iterations'])}",
+        f"seed 0 is the shipped model]. {floor_note(seeds, TABLE1[profile.name].ilc_iterations)}",
         "",
         markdown(table),
         "",

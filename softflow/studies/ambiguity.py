@@ -27,7 +27,7 @@ from softflow.data.variants import VARIANTS, variant_dataset
 from softflow.profiles import FIXED_BUDGET
 from softflow.rod.dynamics import Simulator
 from softflow.store import cache_file, cached_arrays
-from softflow.studies.study import fixed_budget, held_out_plan, trained, unnamed
+from softflow.studies.study import Grid, held_out_plan, trained, unnamed
 from softflow.studies.table1 import table1_references
 
 
@@ -73,8 +73,15 @@ def transition_spread(states, u, episodes, **options) -> Spread:
 # own 1000 episodes, the MLP against RF and RF-FWD, 3 seeds, data_size's 20 000 optimiser steps
 # (RF-FWD's surrogate the same), scored on Table I's references (made on the variant's rod)
 # and per step on the variant's held-out episodes; flows also planned with the mean of 16 draws.
+@dataclass(frozen=True, kw_only=True)
+class AmbiguityGrid(Grid):
+    variants: tuple[str, ...]  # of ``variants.VARIANTS``
+    episodes: int  # each variant's dataset
+    draws: int  # a flow's mean-of-draws plan
+
+
 AMBIGUITY = {
-    "ci": dict(
+    "ci": AmbiguityGrid(
         variants=("paper", "position-only"),
         models=("mlp", "rf"),
         seeds=(0,),
@@ -82,7 +89,7 @@ AMBIGUITY = {
         draws=8,
         train=FIXED_BUDGET["ci"],
     ),
-    "paper": dict(
+    "paper": AmbiguityGrid(
         variants=tuple(VARIANTS),
         models=("mlp", "rf", "rf-fwd"),
         seeds=(0, 1, 2),
@@ -97,9 +104,9 @@ def cells(profile_name: str) -> list[dict]:
     grid = AMBIGUITY[profile_name]
     return [
         dict(study="ambiguity", model=model, seed=seed, variant=variant)
-        for variant in grid["variants"]
-        for model in grid["models"]
-        for seed in grid["seeds"]
+        for variant in grid.variants
+        for model in grid.models
+        for seed in grid.seeds
     ]
 
 
@@ -108,8 +115,8 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
     episodes (for a flow: also the spread of its draws and how it ranks their error) and open
     loop on Table I's references; one row per reference and plan (z = 0; flows: the mean of draws)."""
     grid, variant = AMBIGUITY[profile_name], VARIANTS[cell["variant"]]
-    dataset = variant_dataset(variant, grid["episodes"])
-    budget = _budget(profile_name)
+    dataset = variant_dataset(variant, grid.episodes)
+    budget = grid.budget(profile_name)
     model, _ = training.ensure_trained(
         cell["model"],
         budget,
@@ -122,10 +129,10 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
     controller = Controller(
         model, cell["model"], robot=variant.robot, u_limit=variant.u_max, observe=variant.observe, workspace_margin=None
     )  # hidden channels shrink the training spread: measure, not refuse
-    measured = dict(cached_spread(dataset, workdir), **per_step_scores(controller, dataset, grid["draws"]))
+    measured = dict(cached_spread(dataset, workdir), **per_step_scores(controller, dataset, grid.draws))
     sim = Simulator(variant.robot)
     references = table1_references(sim, profile_name)
-    plans = {"zero": {}, f"mean-of-{grid['draws']}": dict(noise="seeded", n_samples=grid["draws"])}
+    plans = {"zero": {}, f"mean-of-{grid.draws}": dict(noise="seeded", n_samples=grid.draws)}
     return [
         unnamed(row, plan=plan, **measured)
         for plan, options in plans.items()
@@ -173,9 +180,5 @@ def per_step_scores(controller: Controller, dataset: data.Dataset, draws: int) -
     return row
 
 
-def _budget(profile_name: str):
-    return fixed_budget(profile_name, AMBIGUITY[profile_name]["train"])
-
-
 def models(cell: dict, profile_name: str) -> dict:
-    return trained(cell["model"], _budget(profile_name), seed=cell["seed"])
+    return trained(cell["model"], AMBIGUITY[profile_name].budget(profile_name), seed=cell["seed"])

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 from softflow import data, hardware, training
@@ -16,7 +17,7 @@ from softflow.profiles import get_profile
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import HW_ROBOT
 from softflow.store import cache_file, cached_arrays
-from softflow.studies.study import trained
+from softflow.studies.study import Grid, trained
 
 LOOP_MODES = {  # mode -> hardware.run_twin options (repetitions: the profile's)
     "open": dict(loop="open"),
@@ -28,8 +29,21 @@ LOOP_MODES = {  # mode -> hardware.run_twin options (repetitions: the profile's)
     "closed-ilc-calibrated": dict(loop="closed", repetitions=None, calibrated=True),
 }
 GAP_MODES = ("open", "open-calibrated", "closed", "closed-calibrated")  # under each doubled gap term
+
+
+@dataclass(frozen=True, kw_only=True)
+class LoopGrid(Grid):
+    configs: tuple[str, ...]  # gravity configurations of the twin
+    modes: tuple[str, ...]  # of LOOP_MODES
+    references: int  # the first of hardware_references
+    repetitions: int  # of a mode that learns across repetitions
+    latencies: tuple[float, ...]  # s: the closed loop's extra cells at these camera latencies
+    dropped: bool  # a closed-loop cell with 10 % of the frames lost
+    gaps: tuple[str, ...]  # terms of the typical gap doubled, one cell each
+
+
 LOOP_GRID = {
-    "ci": dict(
+    "ci": LoopGrid(
         configs=("vertical",),
         modes=("open", "closed", "closed-ilc-calibrated"),
         references=1,
@@ -38,7 +52,7 @@ LOOP_GRID = {
         dropped=False,
         gaps=(),
     ),
-    "paper": dict(
+    "paper": LoopGrid(
         configs=("vertical", "horizontal"),
         modes=tuple(LOOP_MODES),
         references=5,
@@ -54,20 +68,16 @@ CAMERA_LATENCY = 0.033  # s: one frame at 30 fps
 def cells(profile_name: str) -> list[dict]:
     grid = LOOP_GRID[profile_name]
     cell = dict(study="closed_loop", model="rf-fwd", seed=0, latency=CAMERA_LATENCY, dropped=0.0, gap="typical")
-    cells = [
-        dict(cell, gravity=g, mode=mode, **learning_options(mode)) for g in grid["configs"] for mode in grid["modes"]
-    ]
-    cells += [
-        dict(cell, gravity=g, mode="closed", latency=latency) for g in grid["configs"] for latency in grid["latencies"]
-    ]
-    cells += [dict(cell, gravity=g, mode="closed", dropped=0.1) for g in grid["configs"] if grid["dropped"]]
+    cells = [dict(cell, gravity=g, mode=mode, **learning_options(mode)) for g in grid.configs for mode in grid.modes]
+    cells += [dict(cell, gravity=g, mode="closed", latency=latency) for g in grid.configs for latency in grid.latencies]
+    cells += [dict(cell, gravity=g, mode="closed", dropped=0.1) for g in grid.configs if grid.dropped]
     cells += [
         dict(cell, gravity=g, mode=mode, gap=f"2x {term}")
-        for term in grid["gaps"]
-        for g in grid["configs"]
+        for term in grid.gaps
+        for g in grid.configs
         for mode in GAP_MODES
     ]
-    return cells + [dict(cell, gravity=g, mode="open", gap="none") for g in grid["configs"]]  # what the gap costs
+    return cells + [dict(cell, gravity=g, mode="open", gap="none") for g in grid.configs]  # what the gap costs
 
 
 def learning_options(mode: str) -> dict:
@@ -106,7 +116,7 @@ def mode_options(mode: str, profile_name: str, sim: Simulator, gap: hardware.Rea
     a real one, cached in ``workdir``)."""
     options = dict(LOOP_MODES[mode])
     if "repetitions" in options:
-        options["repetitions"] = LOOP_GRID[profile_name]["repetitions"]
+        options["repetitions"] = LOOP_GRID[profile_name].repetitions
     identified = {}
     if options.pop("calibrated", False):
         fit = identified_twin(sim, gap, get_profile(profile_name).identification_seconds, workdir)
@@ -119,7 +129,7 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
     """The twin model of one configuration on Table III's references under the cell's gap, in
     one loop mode; one row per reference."""
     controller, sim, gap, options, identified = twin_setup(cell, profile_name, device, workdir)
-    references = hardware_references(sim)[: LOOP_GRID[profile_name]["references"]]
+    references = hardware_references(sim)[: LOOP_GRID[profile_name].references]
     rows, _ = hardware.run_twin(controller, references, sim, gap, **options)
     return [dict(row, **identified) for row in rows.drop(columns=["gravity", "loop"]).to_dict("records")]
 

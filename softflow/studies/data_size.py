@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from softflow import data, training
@@ -10,17 +10,23 @@ from softflow.control.planning import Controller, evaluate
 from softflow.profiles import FIXED_BUDGET, get_profile
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import SIM_ROBOT
-from softflow.studies.study import held_out_plan, trained, unnamed
+from softflow.studies.study import Grid, held_out_plan, trained, unnamed
 from softflow.studies.table1 import table1_references
 
+
+@dataclass(frozen=True, kw_only=True)
+class DataSizeGrid(Grid):
+    sizes: tuple[int, ...]  # episodes: the first of the profile's dataset
+
+
 DATA_SIZE = {
-    "ci": dict(
+    "ci": DataSizeGrid(
         sizes=(25, 100),
         models=("mlp", "mlp-physical"),
         seeds=(0,),
         train=FIXED_BUDGET["ci"],
     ),
-    "paper": dict(
+    "paper": DataSizeGrid(
         sizes=(100, 300, 1000, 3000),
         models=("mlp", "mlp-physical", "rf", "rf-physical"),
         seeds=(0, 1, 2),
@@ -33,9 +39,9 @@ def cells(profile_name: str) -> list[dict]:
     grid = DATA_SIZE[profile_name]
     return [
         dict(study="data_size", model=model, seed=seed, episodes=size)
-        for size in grid["sizes"]
-        for model in grid["models"]
-        for seed in grid["seeds"]
+        for size in grid.sizes
+        for model in grid.models
+        for seed in grid.seeds
     ]
 
 
@@ -45,7 +51,7 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
     held-out test episodes (the same for every size)."""
     profile, sim = get_profile(profile_name), Simulator(SIM_ROBOT)
     dataset = data.subset(data.load_dataset(profile, progress=False), cell["episodes"])
-    config = replace(DATA_SIZE[profile_name]["train"], seed=cell["seed"])
+    config = replace(DATA_SIZE[profile_name].train, seed=cell["seed"])
     path = workdir / "models" / profile_name / f"{cell['model']}-n{cell['episodes']}-seed{cell['seed']}.pt"
     model, checkpoint = training.train(cell["model"], dataset, config, path, device=device, progress=False)
     controller = Controller(model, cell["model"], workspace_margin=None)  # few episodes: extrapolation is measured
@@ -56,10 +62,5 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
     ]
 
 
-def _budget(profile_name: str):
-    """The profile with the study's fixed budget for every model."""
-    return replace(get_profile(profile_name), train=DATA_SIZE[profile_name]["train"], per_step_train=None)
-
-
 def models(cell: dict, profile_name: str) -> dict:
-    return trained(cell["model"], _budget(profile_name), seed=cell["seed"])
+    return trained(cell["model"], DATA_SIZE[profile_name].budget(profile_name), seed=cell["seed"])

@@ -3,7 +3,7 @@ the tau sampling, every variant at the profile's short budget (the sequence mode
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from softflow import data, training
@@ -12,7 +12,7 @@ from softflow.data.references import evaluation_references
 from softflow.profiles import get_profile
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import SIM_ROBOT
-from softflow.studies.study import trained, unnamed
+from softflow.studies.study import Grid, trained, unnamed
 
 # variant -> (model, its arguments beyond the registry's); one seed each: a screen, which the
 # fwd_lambda study (notebook 11) repeats with three seeds at the full budget.
@@ -23,9 +23,14 @@ VARIANTS = {
 }
 
 
-# per profile, the Table I references a variant is scored on (None: all twelve); the ci run's
-# cost is its rollouts, whose length the longest reference sets
-REFERENCES = {"ci": ("circle", "char_S", "Rand1", "Rand2"), "paper": None}
+@dataclass(frozen=True, kw_only=True)
+class DesignGrid(Grid):
+    # the Table I references a variant is scored on (None: all twelve); the ci run's cost is its
+    # rollouts, whose length the longest reference sets
+    references: tuple[str, ...] | None
+
+
+DESIGN = {"ci": DesignGrid(references=("circle", "char_S", "Rand1", "Rand2")), "paper": DesignGrid(references=None)}
 
 
 def cells(profile_name: str) -> list[dict]:
@@ -46,7 +51,7 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
     model, checkpoint = training.ensure_trained(
         name, profile, dataset, model_kwargs=kwargs, root=workdir / "models" / profile_name, device=device
     )
-    names = REFERENCES[profile_name]
+    names = DESIGN[profile_name].references
     references = [r for r in evaluation_references(sim) if names is None or r.name in names]
     results, _ = evaluate(Controller(model, name), references, sim)
     fitted = dict(best_val=float(checkpoint["best_val"]), epochs_run=int(checkpoint["epochs_run"]))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -12,15 +13,22 @@ from softflow.control.planning import Controller, evaluate
 from softflow.profiles import get_profile
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import SIM_ROBOT
-from softflow.studies.study import held_out_plan, trained, unnamed
+from softflow.studies.study import Grid, held_out_plan, trained, unnamed
 from softflow.studies.table1 import table1_references
+
 
 # Fixed before any ran: lambda in {0, 0.03, 0.1, 0.3, 1} x seeds 0-2 at
 # RF-FWD's full paper budget. lambda = 0 is RF and lambda = 1 the shipped RF-FWD: those cells
 # share the table1 study's models (same seeds, same budget), as do the forward surrogates.
+@dataclass(frozen=True, kw_only=True)
+class LambdaGrid(Grid):
+    weights: tuple[float, ...]  # lambda, the consistency term's weight
+    diagnostic_points: int  # held-out transitions of the consistency diagnostics
+
+
 LAMBDA_GRID = {
-    "ci": dict(weights=(0.0, 1.0), seeds=(0,), diagnostic_points=2000),
-    "paper": dict(weights=(0.0, 0.03, 0.1, 0.3, 1.0), seeds=(0, 1, 2), diagnostic_points=20000),
+    "ci": LambdaGrid(weights=(0.0, 1.0), seeds=(0,), diagnostic_points=2000),
+    "paper": LambdaGrid(weights=(0.0, 0.03, 0.1, 0.3, 1.0), seeds=(0, 1, 2), diagnostic_points=20000),
 }
 DIAGNOSTIC_TAUS = (0.05, 0.25, 0.5, 0.75, 0.95)  # where the one-step endpoint estimate is checked
 DIAGNOSTIC_EULER = 4  # steps of the short Euler rollout it is compared with
@@ -30,8 +38,8 @@ def cells(profile_name: str) -> list[dict]:
     grid = LAMBDA_GRID[profile_name]
     return [
         dict(study="fwd_lambda", model="rf-fwd", seed=seed, consistency=weight)
-        for weight in grid["weights"]
-        for seed in grid["seeds"]
+        for weight in grid.weights
+        for seed in grid.seeds
     ]
 
 
@@ -52,7 +60,7 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
         u_rmse_test=held_out_plan(controller, dataset)[1],
         best_val=float(checkpoint["best_val"]),
         epochs_run=int(checkpoint["epochs_run"]),
-        **_consistency_diagnostics(model, forward, dataset, LAMBDA_GRID[profile_name]["diagnostic_points"]),
+        **_consistency_diagnostics(model, forward, dataset, LAMBDA_GRID[profile_name].diagnostic_points),
     )
     results, _ = evaluate(controller, table1_references(sim, profile_name), sim)
     return [unnamed(row, **measured) for row in results.to_dict("records")]

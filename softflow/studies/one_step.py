@@ -24,6 +24,7 @@ Fixed before any row ran (docs/assumptions.md, "The one-step study"):
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import pandas as pd
@@ -35,7 +36,7 @@ from softflow.profiles import FIXED_BUDGET, get_profile
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import SIM_ROBOT, TWO_SEGMENT_ROD
 from softflow.studies import stats, two_segment
-from softflow.studies.study import fixed_budget, trained, unnamed
+from softflow.studies.study import Grid, trained, unnamed
 from softflow.studies.table1 import table1_references
 
 PAPER_ROD, TWO_SEGMENT_TIP = "paper", "two-segment-tip"
@@ -43,9 +44,15 @@ PLANS = {"mlp": (None,), "rf": (4, 1), "rf-fwd": (4, 1), "rf-1": (1, 2), "rf-fwd
 PARENTS = {"rf-1": "rf", "rf-fwd-1": "rf-fwd"}
 BAND = (0.9, 1.1)  # "within 10 %": the ratio's interval inside it
 
+
+@dataclass(frozen=True, kw_only=True)
+class OneStepGrid(Grid):
+    rods: tuple[str, ...]  # PAPER_ROD, TWO_SEGMENT_TIP
+
+
 ONE_STEP = {
-    "ci": dict(rods=(PAPER_ROD,), models=("mlp", "rf", "rf-1"), seeds=(0,), train=FIXED_BUDGET["ci"]),
-    "paper": dict(
+    "ci": OneStepGrid(rods=(PAPER_ROD,), models=("mlp", "rf", "rf-1"), seeds=(0,), train=FIXED_BUDGET["ci"]),
+    "paper": OneStepGrid(
         rods=(PAPER_ROD, TWO_SEGMENT_TIP),
         models=("mlp", "rf", "rf-fwd", "rf-1", "rf-fwd-1"),
         seeds=(0, 1, 2),
@@ -58,9 +65,9 @@ def cells(profile_name: str) -> list[dict]:
     grid = ONE_STEP[profile_name]
     return [
         dict(study="one_step", rod=rod, model=model, seed=seed)
-        for rod in grid["rods"]
-        for model in grid["models"]
-        for seed in grid["seeds"]
+        for rod in grid.rods
+        for model in grid.models
+        for seed in grid.seeds
     ]
 
 
@@ -73,7 +80,7 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
         references = table1_references(sim, profile_name)
         model, checkpoint = training.ensure_trained(
             name,
-            _budget(profile_name),
+            ONE_STEP[profile_name].budget(profile_name),
             data.DatasetOnDemand(get_profile(profile_name), progress=False),  # simulated only if a model must train
             seed=seed,
             root=Path(workdir) / "models" / profile_name / PAPER_ROD,
@@ -83,7 +90,7 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
     else:
         sim = Simulator(TWO_SEGMENT_ROD, two_segment.GRAVITY)
         grid = two_segment.TWO_SEGMENT[profile_name]
-        names = [*grid["shapes"], *(f"Rand{i + 1}" for i in range(grid["n_random"]))]
+        names = [*grid.shapes, *(f"Rand{i + 1}" for i in range(grid.n_random))]
         references = two_segment.references(sim, profile_name, "tip", names=names)
         model, checkpoint = two_segment.trained_model(name, profile_name, "tip", seed, workdir, device)
         controller = Controller(model, name, robot=TWO_SEGMENT_ROD, gravity=two_segment.GRAVITY)
@@ -148,9 +155,5 @@ def _ratio_row(rod: str, family: str, model: str, other: str, interval: stats.In
     )
 
 
-def _budget(profile_name: str):
-    return fixed_budget(profile_name, ONE_STEP[profile_name]["train"])
-
-
 def models(cell: dict, profile_name: str) -> dict:
-    return trained(cell["model"], _budget(profile_name), seed=cell["seed"])
+    return trained(cell["model"], ONE_STEP[profile_name].budget(profile_name), seed=cell["seed"])

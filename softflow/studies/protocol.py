@@ -32,7 +32,7 @@ from softflow.data.references import (
 from softflow.profiles import get_profile
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import DT, SIM_ROBOT
-from softflow.studies.study import FLOOR, floor_rows, trained, unnamed
+from softflow.studies.study import FLOOR, Grid, floor_rows, trained, unnamed
 from softflow.studies.table1 import TABLE1
 
 APPROACHES = ("excluded", "scored", "on-path")
@@ -112,18 +112,26 @@ PROTOCOLS = {  # condition -> the protocol it scores with; "table1" is Table I's
     "z-fresh": Protocol(noise="fresh"),
     **{f"speed-{v:g}": Protocol(speed=v) for v in (0.3, 0.5, 0.75, 1.0, 1.5)},
 }
+
+
+@dataclass(frozen=True, kw_only=True)
+class ProtocolGrid(Grid):
+    conditions: tuple[str, ...]  # of PROTOCOLS, each scoring Table I's seed-0 models
+    ilc_iterations: int  # the floor's trials
+
+
 PROTOCOL_GRID = {
-    "ci": dict(conditions=("table1", "zero-velocity", "z-fresh", "speed-0.5"), ilc_iterations=2),
-    "paper": dict(conditions=tuple(PROTOCOLS), ilc_iterations=15),  # shapes settle within 10 trials
+    "ci": ProtocolGrid(conditions=("table1", "zero-velocity", "z-fresh", "speed-0.5"), ilc_iterations=2),
+    "paper": ProtocolGrid(conditions=tuple(PROTOCOLS), ilc_iterations=15),  # shapes settle within 10 trials
 }
 WITH_RANDOM = ("table1", "z-seeded", "z-fresh")  # conditions that change something on Rand1..Rand4
 
 
 def cells(profile_name: str) -> list[dict]:
-    models = (*TABLE1[profile_name]["models"], FLOOR)
+    models = (*TABLE1[profile_name].models, FLOOR)
     return [
         dict(study="protocol", model=model, seed=0, condition=condition)
-        for condition in PROTOCOL_GRID[profile_name]["conditions"]
+        for condition in PROTOCOL_GRID[profile_name].conditions
         for model in models
         if not (model == FLOOR and PROTOCOLS[condition].noise != "zero")
     ]  # the floor draws no noise
@@ -133,7 +141,7 @@ def protocol_references(sim: Simulator, profile_name: str, condition: str):
     """The references a condition scores, before the protocol is applied: the profile's shapes
     at the condition's speed, and Rand1..Rand4 where the condition changes them."""
     protocol = PROTOCOLS[condition]
-    shapes = shapes_at(sim, TABLE1[profile_name]["shapes"], protocol.speed)
+    shapes = shapes_at(sim, TABLE1[profile_name].shapes, protocol.speed)
     random = [r for r in evaluation_references(sim) if r.family == "random"] if condition in WITH_RANDOM else []
     return shapes + random
 
@@ -146,7 +154,7 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
     dataset = data.load_dataset(profile, progress=False)
     covered = dict(zip((r.name for r in references), coverage(references, dataset)))
     if cell["model"] == FLOOR:
-        rows, _ = floor_rows(sim, references, PROTOCOL_GRID[profile_name]["ilc_iterations"], start_q)
+        rows, _ = floor_rows(sim, references, PROTOCOL_GRID[profile_name].ilc_iterations, start_q)
     else:
         model, _ = training.ensure_trained(cell["model"], profile, dataset, device=device)
         controller = Controller(model, cell["model"])

@@ -10,7 +10,7 @@ Fixed before any paper cell ran (docs/assumptions.md, "The recorded study").
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -26,7 +26,7 @@ from softflow.rod.robots import HW_ROBOT
 from softflow.store import content_key
 from softflow.studies import ambiguity
 from softflow.studies.closed_loop import CAMERA_LATENCY, learning_options, mode_options
-from softflow.studies.study import fixed_budget, trained
+from softflow.studies.study import Grid, trained
 
 GAPS = {"friction": hardware.FRICTION_GAP, "typical": hardware.TYPICAL_GAP}  # the cell's gap by name
 RECORDINGS, SIMULATOR = "recordings", "simulator"  # what a cell's model was trained on
@@ -38,8 +38,20 @@ SPLIT_SEED = 0
 LOADER_FRACTIONS = (1 / 3, 1 / 3)  # any split load_dataset accepts for 3 runs or more; replaced by ours
 MM = 1e-3  # m per unit of the motor columns (l1_mm, ...)
 
+
+@dataclass(frozen=True, kw_only=True)
+class RecordedGrid(Grid):
+    configs: tuple[str, ...]  # gravity configurations of the twin
+    seconds: float  # per recorded run
+    held_out: int  # runs, seed HELD_OUT_SEED
+    trained: dict[tuple[str, int], tuple[str, ...]]  # (gap, runs trained on): models
+    simulator: dict[str, tuple[str, ...]]  # gap: loop modes of the simulator-trained RF-FWD
+    references: tuple[str, ...] | None  # of hardware_references (None: all)
+    draws: int
+
+
 RECORDED = {  # per profile: the recordings, the grid and the references
-    "ci": dict(
+    "ci": RecordedGrid(
         configs=("vertical",),
         seconds=1.0,  # per run
         held_out=4,  # runs, seed 1
@@ -50,7 +62,7 @@ RECORDED = {  # per profile: the recordings, the grid and the references
         draws=16,
         train=FIXED_BUDGET["ci"],
     ),
-    "paper": dict(
+    "paper": RecordedGrid(
         configs=("vertical", "horizontal"),
         seconds=5.0,
         held_out=60,  # 5 minutes
@@ -74,10 +86,10 @@ def cells(profile_name: str) -> list[dict]:
     cell = dict(study="recorded", seed=0)
     return [
         dict(cell, model=model, seed=seed, gravity=g, gap=gap, trained_on=RECORDINGS, runs=runs, mode=PLANNED_COMMANDS)
-        for g in grid["configs"]
-        for (gap, runs), names in grid["trained"].items()
+        for g in grid.configs
+        for (gap, runs), names in grid.trained.items()
         for model in names
-        for seed in grid["seeds"]
+        for seed in grid.seeds
     ] + [
         dict(
             cell,
@@ -90,15 +102,15 @@ def cells(profile_name: str) -> list[dict]:
             dropped=0.0,
             **learning_options(mode),
         )
-        for g in grid["configs"]
-        for gap, modes in grid["simulator"].items()
+        for g in grid.configs
+        for gap, modes in grid.simulator.items()
         for mode in modes
     ]
 
 
 def references(sim: Simulator, profile_name: str) -> list[Reference]:
     """The profile's references for the twin of ``sim``'s configuration (``hardware_references``)."""
-    names = RECORDED[profile_name]["references"]
+    names = RECORDED[profile_name].references
     made = hardware_references(sim)
     return made if names is None else [r for r in made if r.name in names]
 
@@ -122,12 +134,12 @@ def _recorded_rows(cell, profile_name, device, workdir, sim, scored) -> list[dic
     planned, clipped = plan_commands(model, cell["model"], checkpoint, scored)
     rows, _ = hardware.run_commands([MM * u for u in planned], scored, sim, GAPS[cell["gap"]], clipped=clipped)
     measured = dict(
-        recorded_minutes=cell["runs"] * grid["seconds"] / 60,
+        recorded_minutes=cell["runs"] * grid.seconds / 60,
         train_runs=len(dataset.train),
         val_runs=len(dataset.val),
         held_out_runs=len(held_out.test),
         **ambiguity.cached_spread(dataset, workdir),
-        **ambiguity.per_step_scores(_controller(model, cell["model"], checkpoint), held_out, grid["draws"]),
+        **ambiguity.per_step_scores(_controller(model, cell["model"], checkpoint), held_out, grid.draws),
         best_val=float(checkpoint["best_val"]),
         epochs_run=int(checkpoint["epochs_run"]),
         train_minutes=float(checkpoint["wall_seconds"]) / 60,
@@ -140,10 +152,10 @@ def recorded_model(cell: dict, profile_name: str, device: str, workdir: Path):
     on them (or found trained); (model, checkpoint, training set, held-out set)."""
     grid, gravity, gap = RECORDED[profile_name], cell["gravity"], cell["gap"]
     dataset = training_set(record(workdir, profile_name, gravity, gap, TRAINING_SEED, cell["runs"]), workdir)
-    held_out = held_out_set(record(workdir, profile_name, gravity, gap, HELD_OUT_SEED, grid["held_out"]), workdir)
+    held_out = held_out_set(record(workdir, profile_name, gravity, gap, HELD_OUT_SEED, grid.held_out), workdir)
     model, checkpoint = training.ensure_trained(
         cell["model"],
-        _budget(profile_name),
+        grid.budget(profile_name),
         dataset,
         None,
         None,
@@ -199,7 +211,7 @@ def recording_settings(profile_name: str, gravity: str, gap: str, seed: int) -> 
         robot_parameters=HW_ROBOT.parameters(),
         gravity=gravity,
         gap=GAPS[gap].parameters(),
-        seconds=float(RECORDED[profile_name]["seconds"]),
+        seconds=float(RECORDED[profile_name].seconds),
         seed=int(seed),
         latency=0.0,  # frames stamped when taken
         dropped=0.0,  # none lost
@@ -236,11 +248,11 @@ def record_grid(profile_name: str, workdir, workers: int = 1) -> None:
     of it: recording first spares a cluster that (paper: about 6 CPU-hours for the four
     60-minute folders and the held-out runs)."""
     grid, workdir = RECORDED[profile_name], Path(workdir)
-    for gravity in grid["configs"]:
-        for gap in dict.fromkeys(gap for gap, _ in grid["trained"]):
-            runs = max(n for g, n in grid["trained"] if g == gap)
+    for gravity in grid.configs:
+        for gap in dict.fromkeys(gap for gap, _ in grid.trained):
+            runs = max(n for g, n in grid.trained if g == gap)
             record(workdir, profile_name, gravity, gap, TRAINING_SEED, runs, workers)
-            record(workdir, profile_name, gravity, gap, HELD_OUT_SEED, grid["held_out"], workers)
+            record(workdir, profile_name, gravity, gap, HELD_OUT_SEED, grid.held_out, workers)
 
 
 def _read(files: list[Path], workdir: Path) -> data.Dataset:
@@ -284,10 +296,6 @@ def held_out_set(files: list[Path], workdir: Path) -> data.Dataset:
     return replace(loaded, train=empty, val=empty, test=np.arange(len(loaded.u)), key=f"{loaded.key}-held-out")
 
 
-def _budget(profile_name: str):
-    return fixed_budget(profile_name, RECORDED[profile_name]["train"])
-
-
 def models(cell: dict, profile_name: str) -> dict:
     """The trained models' arguments and budgets; for a model of recordings also how its runs
     were recorded and read, so a changed setting recomputes the rows."""
@@ -297,10 +305,10 @@ def models(cell: dict, profile_name: str) -> dict:
     recording = dict(
         training=recording_settings(profile_name, gravity, gap, TRAINING_SEED),
         held_out=recording_settings(profile_name, gravity, gap, HELD_OUT_SEED),
-        held_out_runs=grid["held_out"],
+        held_out_runs=grid.held_out,
         inputs=recorder.motor_columns(HW_ROBOT),
         validation=VALIDATION,
         split_seed=SPLIT_SEED,
         loader=recordings.RECORDINGS_VERSION,
     )
-    return dict(trained(cell["model"], _budget(profile_name), seed=cell["seed"]), recordings=recording)
+    return dict(trained(cell["model"], grid.budget(profile_name), seed=cell["seed"]), recordings=recording)

@@ -1,5 +1,5 @@
-"""What every study shares: the ``Study`` type, the ILC floor's rows and the held-out per-step
-error.
+"""What every study shares: the ``Study`` type, its ``Grid`` per profile, the ILC floor's rows
+and the held-out per-step error.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from softflow import data
 from softflow.control import floor
 from softflow.control.planning import Controller, SaturationWarning, score
 from softflow.models.registry import model_spec, resolved_kwargs
-from softflow.profiles import Profile, get_profile
+from softflow.profiles import Profile, TrainConfig, get_profile
 from softflow.rod.dynamics import Simulator
 
 FLOOR = "ilc-floor"  # the model name of the ILC floor's rows in the studies
@@ -42,6 +42,22 @@ class Study:
     run_cell: Callable[[dict, str, str, Path, str], dict | list[dict]]
     models: Callable[[dict, str], dict] = lambda cell, profile_name: {}
     version: int = 1
+
+
+@dataclass(frozen=True, kw_only=True)
+class Grid:
+    """A study's conditions for one profile, fixed before its first row (each study adds its
+    own fields): the models, the seeds, and the one training budget every model gets where the
+    study compares models at equal optimiser steps (None: each model's budget in the profile)."""
+
+    models: tuple[str, ...] = ()
+    seeds: tuple[int, ...] = (0,)
+    train: TrainConfig | None = None
+
+    def budget(self, profile_name: str) -> Profile:
+        """The profile the grid's models train with."""
+        profile = get_profile(profile_name)
+        return profile if self.train is None else fixed_budget(profile_name, self.train)
 
 
 def trained(name: str, profile: Profile, model_kwargs: dict | None = None, seed: int = 0) -> dict:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from softflow import data, training
@@ -16,11 +16,19 @@ from softflow.data.references import (
 from softflow.profiles import get_profile
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import SIM_ROBOT
-from softflow.studies.study import FLOOR, floor_rows, trained, unnamed
+from softflow.studies.study import FLOOR, Grid, floor_rows, trained, unnamed
 
-TABLE1 = {  # per profile: the grid, and the references it is scored on
-    "ci": dict(models=("mlp", "rf"), seeds=(0, 1), shapes=("circle", "char_S"), n_random=4, ilc_iterations=4),
-    "paper": dict(
+
+@dataclass(frozen=True, kw_only=True)
+class Table1Grid(Grid):
+    shapes: tuple[str, ...]  # the structured references scored, then Rand1..Rand<n_random>
+    n_random: int
+    ilc_iterations: int  # the floor's trials
+
+
+TABLE1 = {
+    "ci": Table1Grid(models=("mlp", "rf"), seeds=(0, 1), shapes=("circle", "char_S"), n_random=4, ilc_iterations=4),
+    "paper": Table1Grid(
         models=("mlp", "lstm", "transformer", "rf", "rf-physical", "rf-fwd"),
         seeds=(0, 1, 2),
         shapes=STRUCTURED,
@@ -35,9 +43,9 @@ def table1_references(sim: Simulator, profile_name: str):
     """The profile's Table I references: its shapes, then Rand1..Rand<n_random> (cached)."""
     grid = TABLE1[profile_name]
     paper_set = evaluation_references(sim)
-    shapes = [r for r in paper_set if r.name in grid["shapes"]]
-    random = [r for r in paper_set if r.family == "random"][: grid["n_random"]]
-    extra = grid["n_random"] - len(random)
+    shapes = [r for r in paper_set if r.name in grid.shapes]
+    random = [r for r in paper_set if r.family == "random"][: grid.n_random]
+    extra = grid.n_random - len(random)
     if extra > 0:
         random += cached_references(sim, f"random-extra-{extra}", _more_random(extra, first=len(random) + 1))
     return shapes + random
@@ -54,7 +62,7 @@ def _more_random(n: int, first: int):
 def cells(profile_name: str) -> list[dict]:
     grid = TABLE1[profile_name]
     return [dict(study="table1", model=FLOOR, seed=0)] + [
-        dict(study="table1", model=model, seed=seed) for model in grid["models"] for seed in grid["seeds"]
+        dict(study="table1", model=model, seed=seed) for model in grid.models for seed in grid.seeds
     ]
 
 
@@ -64,7 +72,7 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
     profile, sim = get_profile(profile_name), Simulator(SIM_ROBOT)
     references = table1_references(sim, profile_name)
     if cell["model"] == FLOOR:
-        rows, trials = floor_rows(sim, references, TABLE1[profile_name]["ilc_iterations"])
+        rows, trials = floor_rows(sim, references, TABLE1[profile_name].ilc_iterations)
         return [unnamed(row, ilc_best_trial=int(t)) for row, t in zip(rows, trials)]
     dataset = data.DatasetOnDemand(profile, progress=False)  # simulated only if a model must be trained
     model, checkpoint = training.ensure_trained(

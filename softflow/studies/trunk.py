@@ -29,6 +29,7 @@ Fixed before any row (docs/assumptions.md, "The trunk study"):
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -42,7 +43,7 @@ from softflow.models.registry import label
 from softflow.profiles import FIXED_BUDGET, TrainConfig
 from softflow.store import REPO, cache_file, cached_arrays
 from softflow.studies import ambiguity, stats
-from softflow.studies.study import fixed_budget, trained
+from softflow.studies.study import Grid, fixed_budget, trained
 
 TRUNK = REPO / "datasets" / "asl_trunk"
 TRAINING_RUN, HELD_OUT = "random_1", ("random_2", "circles")
@@ -61,8 +62,19 @@ NAIVE = ("recorded", "training-mean", "persistence")  # planners that learn noth
 # Persistence is 0.05-0.5 degrees RMS from them per step (the inputs are smooth at 100 Hz): no
 # judge of motion should tell it apart, so it measures the judge's resolution and gates nothing.
 GATE = "training-mean"
+
+
+@dataclass(frozen=True, kw_only=True)
+class TrunkGrid(Grid):
+    observations: tuple[str, ...]  # of OBSERVATIONS
+    windows: tuple[float, ...]  # s: the judge's window lengths
+    draws: int  # a flow's spread
+    judge: TrainConfig  # the forward judge's budget
+    seconds: float | None  # of each run (None: whole runs)
+
+
 TRUNK_GRID = {
-    "ci": dict(
+    "ci": TrunkGrid(
         models=("mlp", "rf"),
         seeds=(0,),
         observations=("tip", "disks"),
@@ -72,7 +84,7 @@ TRUNK_GRID = {
         judge=FIXED_BUDGET["ci"],
         seconds=30.0,  # of each run
     ),
-    "paper": dict(
+    "paper": TrunkGrid(
         models=(*BASELINES, *FLOWS),
         seeds=(0, 1, 2),
         observations=("tip", "disks"),
@@ -89,9 +101,9 @@ def cells(profile_name: str) -> list[dict]:
     grid = TRUNK_GRID[profile_name]
     trained_cells = [
         dict(study="trunk", model=model, seed=seed, observation=observation)
-        for observation in grid["observations"]
-        for model in grid["models"]
-        for seed in grid["seeds"]
+        for observation in grid.observations
+        for model in grid.models
+        for seed in grid.seeds
     ]
     return [dict(study="trunk", model=name, seed=0, observation="disks") for name in NAIVE] + trained_cells
 
@@ -113,7 +125,7 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
         dataset = training_set(cell["observation"], delay, profile_name, workdir)
         model, checkpoint = training.ensure_trained(
             cell["model"],
-            fixed_budget(profile_name, grid["train"]),
+            grid.budget(profile_name),
             dataset,
             None,
             None,
@@ -127,7 +139,7 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
         per_step = {
             name: dict(
                 u_rmse_deg=_rms(plans[name] - runs[name][0]),
-                **_flow_scores(controller, runs[name], grid["draws"]),
+                **_flow_scores(controller, runs[name], grid.draws),
             )
             for name in HELD_OUT
         }
@@ -139,7 +151,7 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
     rows = []
     for name in HELD_OUT:
         u, states = full[name]
-        for seconds in grid["windows"]:
+        for seconds in grid.windows:
             errors = judged_errors(judge, states, plans[name], round(seconds / DT), delay)
             rows += [
                 dict(
@@ -231,7 +243,7 @@ def study_delay(profile_name: str, workdir: Path) -> int:
 def paired_run(name: str, observation: str, delay: int, profile_name: str, workdir: Path):
     """Inputs (T, 6) and states (T+1, 2k) of one run, step t paired with the input sent ``delay``
     periods before it (the profile's first ``seconds`` of it only; cached)."""
-    seconds = TRUNK_GRID[profile_name]["seconds"]
+    seconds = TRUNK_GRID[profile_name].seconds
 
     def compute():
         run = recordings.read(
@@ -301,7 +313,7 @@ def judge_model(profile_name: str, delay: int, device: str, workdir: Path):
     )
     model, _ = training.ensure_trained(
         JUDGE,
-        fixed_budget(profile_name, TRUNK_GRID[profile_name]["judge"]),
+        fixed_budget(profile_name, TRUNK_GRID[profile_name].judge),
         judged,
         None,
         None,
@@ -314,15 +326,9 @@ def judge_model(profile_name: str, delay: int, device: str, workdir: Path):
 def models(cell: dict, profile_name: str) -> dict:
     """What a cell's rows depend on: its model's arguments and budget, the judge's, the data."""
     grid = TRUNK_GRID[profile_name]
-    judge = trained(JUDGE, fixed_budget(profile_name, grid["judge"]))
-    planner = (
-        {}
-        if cell["model"] in NAIVE
-        else trained(cell["model"], fixed_budget(profile_name, grid["train"]), seed=cell["seed"])
-    )
-    return dict(
-        planner=planner, judge=judge, loader=recordings.LOADER_REVISION, max_gap=MAX_GAP, windows=grid["windows"]
-    )
+    judge = trained(JUDGE, fixed_budget(profile_name, grid.judge))
+    planner = {} if cell["model"] in NAIVE else trained(cell["model"], grid.budget(profile_name), seed=cell["seed"])
+    return dict(planner=planner, judge=judge, loader=recordings.LOADER_REVISION, max_gap=MAX_GAP, windows=grid.windows)
 
 
 def run_facts(names=(TRAINING_RUN, *HELD_OUT), delays_of=(TRAINING_RUN,)) -> pd.DataFrame:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 from softflow import hardware
@@ -11,14 +12,22 @@ from softflow.data.references import (
 from softflow.profiles import get_profile
 from softflow.studies import stress
 from softflow.studies.closed_loop import CAMERA_LATENCY, LOOP_GRID, learning_options, twin_setup
-from softflow.studies.study import trained
+from softflow.studies.study import Grid, trained
+
 
 # Fixed before any ran: the burst circle continued to a 0.2 s period (paper profile; the ci
 # profile a short, steep one) under TYPICAL_GAP with 33 ms latency, in the open loop, the
 # integral-corrected closed loop and learning across repetitions; broken as in notebook 05.
+@dataclass(frozen=True, kw_only=True)
+class BurstGrid(Grid):
+    modes: tuple[str, ...]  # of closed_loop.LOOP_MODES
+    periods: tuple[float, float]  # s: the burst circle's first and last
+    duration: float  # s
+
+
 BURST_GRID = {
-    "ci": dict(modes=("open", "closed"), periods=(2.0, 0.3), duration=4.0),
-    "paper": dict(modes=("open", "closed", "closed-ilc"), periods=(5.0, 0.2), duration=12.0 * 4.8 / 3.8),
+    "ci": BurstGrid(modes=("open", "closed"), periods=(2.0, 0.3), duration=4.0),
+    "paper": BurstGrid(modes=("open", "closed", "closed-ilc"), periods=(5.0, 0.2), duration=12.0 * 4.8 / 3.8),
 }
 
 
@@ -26,8 +35,8 @@ def cells(profile_name: str) -> list[dict]:
     cell = dict(study="twin_burst", model="rf-fwd", seed=0, latency=CAMERA_LATENCY, dropped=0.0, gap="typical")
     return [
         dict(cell, gravity=g, mode=mode, **learning_options(mode))
-        for g in LOOP_GRID[profile_name]["configs"]
-        for mode in BURST_GRID[profile_name]["modes"]
+        for g in LOOP_GRID[profile_name].configs
+        for mode in BURST_GRID[profile_name].modes
     ]
 
 
@@ -36,7 +45,7 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
     (its period, reference speed and y-z RMSE of the true tip, as notebook 05 scores the burst)."""
     controller, sim, gap, options, _ = twin_setup(cell, profile_name, device, workdir)
     grid = BURST_GRID[profile_name]
-    reference = hardware_burst_reference(sim, grid["periods"], grid["duration"])
+    reference = hardware_burst_reference(sim, grid.periods, grid.duration)
     rows, runs = hardware.run_twin(controller, [reference], sim, gap, **options)
     centre = sim.tip_positions(sim.rest_q()[None])[0, 1:]
     breakdown = stress.burst_breakdown(reference, {cell["mode"]: runs[reference.name]}, sim.robot.length, centre)

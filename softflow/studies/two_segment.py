@@ -9,7 +9,7 @@ Fixed before any paper cell ran (docs/assumptions.md, "The two-segment study").
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -28,20 +28,33 @@ from softflow.data.references import (
 )
 from softflow.models.checkpoints import checkpoint_path
 from softflow.models.registry import model_spec
-from softflow.profiles import FIXED_BUDGET, PROFILES
+from softflow.profiles import FIXED_BUDGET, PROFILES, Profile
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import TWO_SEGMENT_ROD, rod_folder
 from softflow.store import atomic_write, cache_file, cached_arrays
 from softflow.studies import ambiguity
-from softflow.studies.study import FLOOR, fixed_budget, floor_rows, held_out_plan, trained, unnamed
+from softflow.studies.study import FLOOR, Grid, floor_rows, held_out_plan, trained, unnamed
 
 GRAVITY = "vertical"
 FLOOR_OBSERVATION = "simulator"  # the floor's cell: it learns on the true simulator, it observes nothing
 
+
+@dataclass(frozen=True, kw_only=True)
+class TwoSegmentGrid(Grid):
+    data: Profile  # whose data knobs make the two-segment rod's datasets
+    observations: dict[str, tuple[str, ...]]  # observation: models trained on it
+    ilc_iterations: int  # the floor's trials (0: no floor)
+    shapes: tuple[str, ...]
+    n_random: int
+    paths: int  # 3-D paths, of PATH3D_STARTS
+    draws: int
+    check_episodes: int  # held-out episodes of the tip-step check
+
+
 TWO_SEGMENT = {  # per profile: the data, the grid and the references
-    "ci": dict(
+    "ci": TwoSegmentGrid(
         data=replace(PROFILES["ci"], n_episodes=64),  # the four-input rollouts were most of notebook 12's ci run
-        models={"tip": ("mlp", "rf")},
+        observations={"tip": ("mlp", "rf")},
         seeds=(0,),
         ilc_iterations=0,  # no floor
         shapes=("circle", "char_C"),
@@ -51,9 +64,9 @@ TWO_SEGMENT = {  # per profile: the data, the grid and the references
         check_episodes=1,
         train=FIXED_BUDGET["ci"],
     ),
-    "paper": dict(
+    "paper": TwoSegmentGrid(
         data=PROFILES["paper"],
-        models={"tip": ("mlp", "lstm", "transformer", "rf", "rf-fwd"), "tip+disk": ("mlp", "rf", "rf-fwd")},
+        observations={"tip": ("mlp", "lstm", "transformer", "rf", "rf-fwd"), "tip+disk": ("mlp", "rf", "rf-fwd")},
         seeds=(0, 1, 2),
         ilc_iterations=40,
         shapes=STRUCTURED,
@@ -69,11 +82,11 @@ TWO_SEGMENT = {  # per profile: the data, the grid and the references
 def cells(profile_name: str) -> list[dict]:
     grid = TWO_SEGMENT[profile_name]
     floor = [dict(study="two_segment", model=FLOOR, seed=0, observation=FLOOR_OBSERVATION)]
-    return (floor if grid["ilc_iterations"] else []) + [
+    return (floor if grid.ilc_iterations else []) + [
         dict(study="two_segment", model=model, seed=seed, observation=observation)
-        for observation, names in grid["models"].items()
+        for observation, names in grid.observations.items()
         for model in names
-        for seed in grid["seeds"]
+        for seed in grid.seeds
     ]
 
 
@@ -85,13 +98,9 @@ def references(sim: Simulator, profile_name: str, observation: str = "tip", name
     grid = TWO_SEGMENT[profile_name]
     random_set = names is None or any(str(name).startswith("Rand") for name in names)
     made = [
-        *(cached_references(sim, f"two-segment-{name}", _shape(name))[0] for name in grid["shapes"]),
-        *(
-            cached_references(sim, f"two-segment-random-{grid['n_random']}", _random(grid["n_random"]))
-            if random_set
-            else []
-        ),
-        *(cached_references(sim, f"two-segment-path3d-{a}", _path(a))[0] for a in PATH3D_STARTS[: grid["paths"]]),
+        *(cached_references(sim, f"two-segment-{name}", _shape(name))[0] for name in grid.shapes),
+        *(cached_references(sim, f"two-segment-random-{grid.n_random}", _random(grid.n_random)) if random_set else []),
+        *(cached_references(sim, f"two-segment-path3d-{a}", _path(a))[0] for a in PATH3D_STARTS[: grid.paths]),
     ]
     if names is not None:
         by_name = {r.name: r for r in made}
@@ -133,7 +142,7 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
     grid, sim = TWO_SEGMENT[profile_name], Simulator(TWO_SEGMENT_ROD, GRAVITY)
     scored = references(sim, profile_name)
     if cell["model"] == FLOOR:
-        rows, trials = floor_rows(sim, scored, grid["ilc_iterations"])
+        rows, trials = floor_rows(sim, scored, grid.ilc_iterations)
         return [unnamed(row, ilc_best_trial=int(t)) for row, t in zip(rows, trials)]
     observation = cell["observation"]
     dataset = _dataset(profile_name, observation)
@@ -141,15 +150,15 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
     controller = Controller(model, cell["model"], robot=TWO_SEGMENT_ROD, gravity=GRAVITY, workspace_margin=None)
     measured = dict(
         **ambiguity.cached_spread(dataset, workdir),
-        **ambiguity.per_step_scores(controller, dataset, grid["draws"]),
-        **tip_steps(controller, dataset, sim, grid["draws"], _true_steps(grid, dataset, sim, workdir)),
+        **ambiguity.per_step_scores(controller, dataset, grid.draws),
+        **tip_steps(controller, dataset, sim, grid.draws, _true_steps(grid, dataset, sim, workdir)),
         best_val=float(checkpoint["best_val"]),
         epochs_run=int(checkpoint["epochs_run"]),
         train_minutes=float(checkpoint["wall_seconds"]) / 60,
     )
     plans = {"zero": {}}
     if controller.generative:
-        plans[f"mean-of-{grid['draws']}"] = dict(noise="seeded", n_samples=grid["draws"])
+        plans[f"mean-of-{grid.draws}"] = dict(noise="seeded", n_samples=grid.draws)
     rows = tracking(controller, references(sim, profile_name, observation), scored, sim, plans)
     return [unnamed(row, **measured) for row in rows]
 
@@ -194,23 +203,23 @@ def _tip_step(sim: Simulator, truth: dict, u) -> float:
     return 1e3 * float(np.sqrt(np.mean(np.sum(error**2, axis=-1))))
 
 
-def _true_steps(grid: dict, dataset: data.Dataset, sim: Simulator, workdir: Path) -> dict:
+def _true_steps(grid: TwoSegmentGrid, dataset: data.Dataset, sim: Simulator, workdir: Path) -> dict:
     """The true (q, qd) (E, T, nq) before each transition of the first ``check_episodes`` test
     episodes and the tip after it (E, T, 3), re-simulated from their u; cached per dataset (both
     observations share it)."""
-    episodes = dataset.test[: grid["check_episodes"]]
+    episodes = dataset.test[: grid.check_episodes]
 
     def compute():
         q, qd = sim.integrate(dataset.u[episodes], sim.rest_q(), np.zeros(sim.nq))  # (E, T+1, nq) each
         return dict(q=q[:, :-1], qd=qd[:, :-1], tip=dataset.states[episodes, 1:, :3])
 
-    stem = data.dataset_path(grid["data"], TWO_SEGMENT_ROD, GRAVITY).stem
+    stem = data.dataset_path(grid.data, TWO_SEGMENT_ROD, GRAVITY).stem
     return cached_arrays(cache_file(workdir, "true-steps", dict(dataset=stem, episodes=episodes.tolist())), compute)
 
 
 def _dataset(profile_name: str, observation: str) -> data.Dataset:
     grid = TWO_SEGMENT[profile_name]
-    return data.load_dataset(grid["data"], TWO_SEGMENT_ROD, GRAVITY, observation=observation, progress=False)
+    return data.load_dataset(grid.data, TWO_SEGMENT_ROD, GRAVITY, observation=observation, progress=False)
 
 
 def trained_model(
@@ -227,7 +236,7 @@ def trained_model(
     ``workdir`` (found there when it exists)."""
     return training.ensure_trained(
         name,
-        _budget(profile_name),
+        TWO_SEGMENT[profile_name].budget(profile_name),
         _dataset(profile_name, observation) if dataset is None else dataset,
         TWO_SEGMENT_ROD,
         GRAVITY,
@@ -271,7 +280,7 @@ def ship_models(workdir: Path, models=None) -> list[Path]:
     (``Profile.rod_train``). A shipped file is never overwritten: one that differs is a
     ValueError. Returns the shipped paths."""
     root, rod = _models_root(workdir, "paper", "tip"), rod_folder(TWO_SEGMENT_ROD, GRAVITY)
-    names = TWO_SEGMENT["paper"]["models"]["tip"] if models is None else models
+    names = TWO_SEGMENT["paper"].observations["tip"] if models is None else models
     shipped = []
     for name in dict.fromkeys(n for model in names for n in (*model_spec(model).requires, model)):
         source, target = (
@@ -296,9 +305,7 @@ def _models_root(workdir: Path, profile_name: str, observation: str) -> Path:
     return Path(workdir) / "models" / profile_name / observation
 
 
-def _budget(profile_name: str):
-    return fixed_budget(profile_name, TWO_SEGMENT[profile_name]["train"])
-
-
 def models(cell: dict, profile_name: str) -> dict:
-    return {} if cell["model"] == FLOOR else trained(cell["model"], _budget(profile_name), seed=cell["seed"])
+    if cell["model"] == FLOOR:
+        return {}
+    return trained(cell["model"], TWO_SEGMENT[profile_name].budget(profile_name), seed=cell["seed"])

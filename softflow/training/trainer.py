@@ -296,7 +296,7 @@ def ensure_trained(
     rod = rod_folder(robot, gravity) if robot is not None else dataset.key
     path = checkpoint_path(name, profile.name, rod, model_kwargs, seed=seed, shipped=ship, root=root)
     config = replace(profile.train_config(name, getattr(robot, "name", None)), seed=seed)
-    if profile.name == "paper" and not ship and seed == 0:
+    if profile.ships and not ship and seed == 0:
         shipped = checkpoint_path(name, profile.name, rod, model_kwargs, shipped=True)
         if shipped.exists():
             checkpoint = load_checkpoint(shipped)
