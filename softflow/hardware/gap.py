@@ -11,7 +11,6 @@ import numpy as np
 from softflow.rod.robots import Robot
 
 SLIDING_LENGTH = 5e-4  # m, the Dahl sliding length of a cable in its holes (assumed; docs/assumptions.md)
-ADDED_TERMS = ("cable_friction", "sliding_length")  # out of a gap's key while at their defaults
 
 
 @dataclass(frozen=True)
@@ -47,10 +46,8 @@ class RealityGap:
             raise ValueError(f"sliding_length must be a length > 0 m (Dahl's); got {self.sliding_length!r}")
 
     def parameters(self) -> dict:
-        """The terms that key caches: a term added later counts only when it differs from its
-        default, so every gap that existed keeps its key (use this, not ``asdict``, in a key)."""
-        defaults = {name: RealityGap.__dataclass_fields__[name].default for name in ADDED_TERMS}
-        return {k: v for k, v in asdict(self).items() if not (k in defaults and v == defaults[k])}
+        """The terms that key caches: all of them."""
+        return asdict(self)
 
     def plant_robot(self, robot: Robot) -> Robot:
         return replace(

@@ -108,10 +108,7 @@ class CablePlant:
         tensions = np.zeros_like(self.motor)
         for _ in range(self.substeps):
             self.motor = self.motor + follow * (command - self.motor)
-            if np.any(self.friction > 0):  # every rod rubs; one with mu = 0 gets a mean factor of exactly 1
-                tension = self._rubbing_tension(self.q + 0.5 * h * self.qd)
-            else:  # frictionless cables: the arithmetic of the plant before friction, bit for bit
-                tension = self.stiffness * np.maximum(self._cable_stretch(self.motor, self.q + 0.5 * h * self.qd), 0.0)
+            tension = self._rubbing_tension(self.q + 0.5 * h * self.qd)  # mu = 0: a mean factor of exactly 1
             self.q, self.qd = (
                 x[:, -1] for x in sim.integrate(cable_actuation(tension, self.robot)[:, None], self.q, self.qd)
             )

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
@@ -12,10 +12,9 @@ from softflow.store import content_key
 # The simulation rod's actuation range and sample period: the paper's values, defined once.
 U_MAX = 4.0  # N, actuation range [-U_MAX, U_MAX] of each differential tension
 DT = 0.01  # s, sampling interval
+
+
 # Fields added after caches were keyed: left out of a key while at their default (Robot.parameters).
-_ADDED_FIELDS = ("cable_anchors",)
-
-
 @dataclass(frozen=True)
 class Robot:
     """A cantilevered, cable-driven elastic rod with a circular cross-section.
@@ -110,10 +109,8 @@ class Robot:
         return 2 * len(self.cable_groups)
 
     def parameters(self) -> dict:
-        """The parameters that key caches (not the name): a field added later counts only
-        when it differs from its default, so the keys of the rods that existed stay as they were."""
-        defaults = {f.name: f.default for f in fields(self) if f.name in _ADDED_FIELDS}
-        return {k: v for k, v in asdict(self).items() if k != "name" and not (k in defaults and v == defaults[k])}
+        """The parameters that key caches: every field but the name."""
+        return {k: v for k, v in asdict(self).items() if k != "name"}
 
 
 # Simulation rod of the paper (Sec. IV-A): two orthogonal antagonistic pairs,
