@@ -138,7 +138,8 @@ def test_a_checkpoint_carrying_a_pickled_object_is_refused(tmp_path, capsys):
         checkpoints.load_checkpoint(path)
     assert "unpickled!" not in capsys.readouterr().out  # nothing ran
     plain = tmp_path / "plain.pt"
-    checkpoints.save_checkpoint({"name": "mlp", "model_kwargs": {}, "model": {"w": torch.ones(2)}}, plain)
+    record = {"name": "mlp", "model_kwargs": {}, "model": {"w": torch.ones(2)}, "dims": {"inputs": 2, "position": 3}}
+    checkpoints.save_checkpoint(record, plain)
     assert checkpoints.load_checkpoint(plain)["model"]["w"].tolist() == [1.0, 1.0]
 
 

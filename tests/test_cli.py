@@ -170,7 +170,7 @@ def test_train_prints_the_checkpoint_it_wrote_last(tmp_path, capsys, monkeypatch
         assert device == "cpu"  # --device as given, resolved by the sweep's rule
         path = checkpoints.checkpoint_path(name, profile.name, rod_folder(robot, gravity))
         record = checkpoints.identity(name, None, profile.train_config(name), dataset.key)
-        record.update(model={}, epochs_run=1, best_val=0.5, wall_seconds=6.0)
+        record.update(model={}, dims={"inputs": 2, "position": 3}, epochs_run=1, best_val=0.5, wall_seconds=6.0)
         checkpoints.save_checkpoint(record, path)
         return None, record
 

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import torch
 
-from softflow.models.common import PAPER_DIMS, Dims
+from softflow.models.common import Dims
 from softflow.models.registry import build_model, resolved_kwargs
 from softflow.profiles import TrainConfig
 from softflow.store import DATA_DIR, REPO, atomic_write
@@ -39,16 +39,14 @@ def load_checkpoint(path: Path) -> dict:
         raise ValueError(
             f"checkpoint {path} is corrupt or unreadable ({type(error).__name__}); delete it to retrain"
         ) from error
-    if not isinstance(checkpoint, dict) or not {"name", "model_kwargs", "model"} <= checkpoint.keys():
+    if not isinstance(checkpoint, dict) or not {"name", "model_kwargs", "model", "dims"} <= checkpoint.keys():
         raise ValueError(f"checkpoint {path} is not a softflow model checkpoint; delete it to retrain")
     return checkpoint
 
 
 def model_from_checkpoint(checkpoint: dict, path: Path | str = "<memory>") -> torch.nn.Module:
-    """The trained model a checkpoint holds, sized as its record says (the paper's sizes where a
-    record predates sizes)."""
-    dims = Dims(**checkpoint["dims"]) if "dims" in checkpoint else PAPER_DIMS
-    model = build_model(checkpoint["name"], dims, **checkpoint["model_kwargs"])
+    """The trained model a checkpoint holds, sized as its record says."""
+    model = build_model(checkpoint["name"], Dims(**checkpoint["dims"]), **checkpoint["model_kwargs"])
     try:
         model.load_state_dict(checkpoint["model"])
     except RuntimeError as error:

@@ -12,7 +12,7 @@ import pandas as pd
 
 from softflow.data.dataset import dataset_path
 from softflow.models.checkpoints import SHIPPED, checkpoint_path, load_checkpoint
-from softflow.models.common import PAPER_DIMS, Dims
+from softflow.models.common import Dims
 from softflow.models.registry import CONTROLLERS, model_spec, resolved_kwargs
 from softflow.profiles import get_profile
 from softflow.report.tables import LABELS, MODELS, markdown, read_result, read_sweep, table1, table3
@@ -258,7 +258,7 @@ def _usage(model: ShippedModel) -> str:
 def model_card(model: ShippedModel, results: dict) -> str:
     """One checkpoint's card: a heading and a two-column Markdown table."""
     checkpoint = model.checkpoint
-    dims = Dims(**checkpoint["dims"]) if "dims" in checkpoint else PAPER_DIMS
+    dims = Dims(**checkpoint["dims"])
     config = checkpoint["train_config"]
     r = model.robot
     requires = model_spec(model.name).requires

@@ -229,6 +229,7 @@ def _train(
         save_checkpoint(
             dict(
                 identity,
+                dims=asdict(dims),
                 model=_on_cpu(model.state_dict()),
                 ema=_on_cpu(ema.state_dict()) if ema is not None else None,
                 optimizer=optimizer.state_dict(),
