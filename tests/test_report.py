@@ -10,6 +10,8 @@ import pytest
 from softflow import profiles, report
 from softflow.report import results_page
 from softflow.rod.robots import HW_ROBOT
+from softflow.store import REPO
+from softflow.studies.registry import STUDIES
 from softflow.studies.study import FLOOR
 from softflow.studies.table1 import TABLE1
 
@@ -72,6 +74,26 @@ def test_a_missing_result_names_the_notebook_that_writes_it(profile):
         report.table3(profile)
     with pytest.raises(ValueError, match="study 'table1' .* notebooks/08_honest_table1.ipynb"):
         report.read_sweep(profile, "table1")
+
+
+def test_every_committed_result_has_the_notebook_that_writes_it():
+    """Read from the notebooks themselves: a cell that saves a table and names the file
+    (notebook 08's "08_differences" + ".csv", notebook 07's "table1_tracking"), else the
+    notebook of the file's number (notebook 14 writes its tables by name in a loop)."""
+    assert report.writer("results_baselines.csv") == "03_baselines.ipynb"
+    assert report.writer("08_differences.csv") == "08_honest_table1.ipynb"
+    assert report.writer("table1_tracking.csv") == "07_comparison_tables.ipynb"
+    assert report.writer("14_judged_paper.csv") == "14_real_robot.ipynb"
+    assert report.writer("nobody_writes.csv") == "the notebook that writes it"
+    unwritten = [p.name for p in sorted((REPO / "figures").glob("*.csv")) if report.writer(p.name).startswith("the ")]
+    assert unwritten == []
+
+
+@pytest.mark.parametrize("study", [s for s in STUDIES if STUDIES[s].notebook])
+def test_the_notebook_a_study_names_runs_it(study):
+    cells = json.loads((REPO / "notebooks" / STUDIES[study].notebook).read_text())["cells"]
+    code = ["".join(c["source"]) for c in cells if c["cell_type"] == "code"]
+    assert any("run_sweep(" in cell and f'"{study}"' in cell for cell in code)
 
 
 def test_the_report_does_not_import_torch():

@@ -7,6 +7,8 @@ that writes it.
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pandas as pd
 
@@ -14,7 +16,8 @@ from softflow.control.metrics import table_rows
 from softflow.models.registry import MODELS as MODEL_SPECS
 from softflow.profiles import Profile
 from softflow.rod.robots import HW_ROBOT
-from softflow.store import DATA_DIR, write_text
+from softflow.store import DATA_DIR, REPO, write_text
+from softflow.studies.registry import STUDIES
 from softflow.studies.study import FLOOR
 
 COLUMNS = {
@@ -27,43 +30,6 @@ MODELS = ["mlp", "lstm", "transformer", "rf", "rf-physical", "rf-fwd"]
 BASELINES, RF_FAMILY = MODELS[:3], MODELS[3:]
 
 LABELS = {name: spec.label for name, spec in MODEL_SPECS.items() if spec.label} | {FLOOR: "ILC floor (true simulator)"}
-# Where each result comes from: file -> notebook that writes it.
-SOURCES = {
-    "results_baselines.csv": "03_baselines.ipynb",
-    "training_baselines.csv": "03_baselines.ipynb",
-    "results_rf.csv": "04_rf_variants.ipynb",
-    "training_rf.csv": "04_rf_variants.ipynb",
-    "euler_sweep.csv": "04_rf_variants.ipynb",
-    "stress_burst.csv": "05_stress_tests.ipynb",
-    "stress_complex3d.csv": "05_stress_tests.ipynb",
-    "table3_twin.csv": "06_hardware_replay.ipynb",
-    "twin_results.csv": "06_hardware_replay.ipynb",
-    "baseline_sizes.csv": "03_baselines.ipynb",
-    "design_sweep.csv": "04_rf_variants.ipynb",
-    "twin_sensitivity.csv": "06_hardware_replay.ipynb",
-    **{
-        f"08_{name}.csv": "08_honest_table1.ipynb"
-        for name in ("table1_ci", "table2_ci", "differences", "protocol", "speed")
-    },
-    **{f"09_{name}.csv": "09_where_flows_win.ipynb" for name in ("regime_map", "data_size_effects")},
-    **{
-        f"10_{name}.csv": "10_closed_loop.ipynb"
-        for name in ("table3_extended", "latency", "gap_sensitivity", "burst_breaks", "burst_revolutions", "identified")
-    },
-    **{f"11_{name}.csv": "11_consistency_weight.ipynb" for name in ("fwd_lambda_decision", "fwd_lambda_diagnostics")},
-}
-
-# Where each study's rows come from: study -> notebook that runs it.
-SWEEP_SOURCES = {
-    "table1": "08_honest_table1.ipynb",
-    "protocol": "08_honest_table1.ipynb",
-    "data_size": "09_where_flows_win.ipynb",
-    "ambiguity": "09_where_flows_win.ipynb",
-    "closed_loop": "10_closed_loop.ipynb",
-    "twin_burst": "10_closed_loop.ipynb",
-    "fwd_lambda": "11_consistency_weight.ipynb",
-}
-
 # The paper's numbers (Tables I-IV of the paper in ../shared/paper).
 PAPER_TABLE1 = pd.DataFrame(
     {"shape_mm": [23.1, 15.6, 13.4, 6.7, 6.8, 5.0], "random_mm": [30.6, 8.4, 12.7, 5.2, 4.0, 3.5]},
@@ -90,12 +56,26 @@ PAPER_TABLE4 = pd.DataFrame(
 ).set_index("method")
 
 
+def writer(name: str) -> str:
+    """The notebook that writes the result file ``name``, the one to run when it is missing: the
+    one with a cell that saves a table and names the file's stem (notebooks write
+    "08_differences" + ".csv"), else the one whose number the file's name starts with."""
+    stem = name.rsplit(".", 1)[0]
+    notebooks = sorted((REPO / "notebooks").glob("[0-9]*.ipynb"))
+    for path in notebooks:
+        code = ["".join(c["source"]) for c in json.loads(path.read_text())["cells"] if c["cell_type"] == "code"]
+        if any(f'"{stem}' in cell and ("to_csv" in cell or "save_table" in cell) for cell in code):
+            return path.name
+    numbered = [path.name for path in notebooks if path.name[:3] == name[:3] and name[:2].isdigit()]
+    return numbered[0] if numbered else "the notebook that writes it"
+
+
 def read_result(profile: Profile, name: str, **read_options) -> pd.DataFrame:
     """A result CSV of a profile (``read_options`` go to pandas), or a ValueError naming the
     notebook that writes it."""
     path = profile.output_dir / name
     if not path.exists():
-        notebook = SOURCES.get(name, "the notebook that writes it")
+        notebook = writer(name)
         raise ValueError(
             f"{path} is missing: run notebooks/{notebook} with profile {profile.name!r} first "
             f"(make reproduce runs every notebook in order)"
@@ -111,7 +91,8 @@ def read_sweep(profile: Profile, study: str) -> pd.DataFrame:
     for path in (profile.output_dir / "sweeps" / name, DATA_DIR / "sweeps" / name):
         if path.exists():
             return pd.read_csv(path)
-    notebook = SWEEP_SOURCES.get(study, "the notebook that runs it")
+    notebook = STUDIES[study].notebook if study in STUDIES else ""
+    notebook = notebook or "the notebook that runs it"
     raise ValueError(
         f"no rows of study {study!r} for profile {profile.name!r}: run notebooks/{notebook} "
         f"(or `python -m softflow sweep {study} --profile {profile.name}`) first"

@@ -67,16 +67,18 @@ from softflow.studies.study import Study
 
 STUDIES = {
     "smoke": Study(smoke.cells, smoke.run, smoke.models),
-    "table1": Study(table1.cells, table1.run, table1.models),
-    "protocol": Study(protocol.cells, protocol.run, protocol.models),
-    "data_size": Study(data_size.cells, data_size.run, data_size.models),
-    "closed_loop": Study(closed_loop.cells, closed_loop.run, closed_loop.models, version=2),
-    "twin_burst": Study(twin_burst.cells, twin_burst.run, twin_burst.models),
-    "ambiguity": Study(ambiguity.cells, ambiguity.run, ambiguity.models),
-    "fwd_lambda": Study(fwd_lambda.cells, fwd_lambda.run, fwd_lambda.models),
-    "design": Study(design.cells, design.run, design.models),
-    "two_segment": Study(two_segment.cells, two_segment.run, two_segment.models),
-    "recorded": Study(recorded.cells, recorded.run, recorded.models),
-    "trunk": Study(trunk.cells, trunk.run, trunk.models),
-    "one_step": Study(one_step.cells, one_step.run, one_step.models),
+    "table1": Study(table1.cells, table1.run, table1.models, notebook="08_honest_table1.ipynb"),
+    "protocol": Study(protocol.cells, protocol.run, protocol.models, notebook="08_honest_table1.ipynb"),
+    "data_size": Study(data_size.cells, data_size.run, data_size.models, notebook="09_where_flows_win.ipynb"),
+    "closed_loop": Study(
+        closed_loop.cells, closed_loop.run, closed_loop.models, version=2, notebook="10_closed_loop.ipynb"
+    ),
+    "twin_burst": Study(twin_burst.cells, twin_burst.run, twin_burst.models, notebook="10_closed_loop.ipynb"),
+    "ambiguity": Study(ambiguity.cells, ambiguity.run, ambiguity.models, notebook="09_where_flows_win.ipynb"),
+    "fwd_lambda": Study(fwd_lambda.cells, fwd_lambda.run, fwd_lambda.models, notebook="11_consistency_weight.ipynb"),
+    "design": Study(design.cells, design.run, design.models, notebook="04_rf_variants.ipynb"),
+    "two_segment": Study(two_segment.cells, two_segment.run, two_segment.models, notebook="12_two_segment.ipynb"),
+    "recorded": Study(recorded.cells, recorded.run, recorded.models, notebook="13_recorded_runs.ipynb"),
+    "trunk": Study(trunk.cells, trunk.run, trunk.models, notebook="14_real_robot.ipynb"),
+    "one_step": Study(one_step.cells, one_step.run, one_step.models, notebook="15_one_step.ipynb"),
 }

@@ -36,12 +36,14 @@ class Study:
     changed default or budget recomputes the rows instead of serving stale ones.
     ``version``: bump it when a change alters the numbers run_cell returns; every cached row
     of the study is then recomputed.
+    ``notebook``: the notebook that runs the study and shows its rows ("" for none).
     """
 
     cells: Callable[[str], list[dict]]
     run_cell: Callable[[dict, str, str, Path, str], dict | list[dict]]
     models: Callable[[dict, str], dict] = lambda cell, profile_name: {}
     version: int = 1
+    notebook: str = ""
 
 
 @dataclass(frozen=True, kw_only=True)
