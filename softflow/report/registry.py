@@ -1,7 +1,8 @@
 """Which committed result files are made from the studies' shipped rows alone, and by what: each
-entry names the studies whose rows it reads and the function that turns them into the table a
-notebook writes. A test regenerates every entry from `figures/sweeps/` and fails where a committed
-file differs, so a table cannot go stale behind the rows it claims to show."""
+entry names the studies whose rows it reads and the function that turns them into the table.
+Notebooks make and write these tables only through ``written``, and a test regenerates every entry
+from `figures/sweeps/` and fails where a committed file differs, so a table cannot go stale behind
+the rows it claims to show."""
 
 from __future__ import annotations
 
@@ -13,21 +14,27 @@ import pandas as pd
 from softflow.profiles import Profile
 from softflow.report import study_tables
 from softflow.report.tables import read_sweep
+from softflow.store import write_text
 from softflow.studies import one_step, trunk
 
 
 @dataclass(frozen=True)
 class StudyTable:
-    """A table made from the rows of ``studies`` (in that order) by ``make``; ``index``: whether
-    the notebook writes the frame's index."""
+    """A table made from the rows of ``studies`` (in that order) by ``make``, or, where ``part``
+    names one, that part of the tables ``make`` returns (a study's ``summarise``); ``index``:
+    whether the file holds the frame's index."""
 
     studies: tuple[str, ...]
-    make: Callable[..., pd.DataFrame]
+    make: Callable[..., pd.DataFrame | dict[str, pd.DataFrame]]
     index: bool = True
+    part: str | None = None
 
 
-def _part(summarise: Callable, name: str) -> Callable:
-    return lambda rows: summarise(rows)[name]
+# study: (its summarise, the prefix of its files, the parts each is a file of, whether they hold the index)
+SUMMARIES = {
+    "trunk": (trunk.summarise, "14_", ("judged", "judge_check", "flow_rule", "per_step", "spread"), True),
+    "one_step": (one_step.summarise, "15_one_step_", ("rmse", "parity", "tip_win", "collapse"), False),
+}
 
 
 def _per_study_files() -> dict[str, StudyTable]:
@@ -49,22 +56,64 @@ def _per_study_files() -> dict[str, StudyTable]:
         "13_spread.csv": StudyTable(("recorded",), study_tables.recorded_spread),
         "13_per_step.csv": StudyTable(("recorded",), study_tables.recorded_per_step),
     }
-    for suffix in ("", "_paper"):  # notebooks 14 and 15 write their paper tables under both names
-        for name in ("judged", "judge_check", "flow_rule", "per_step", "spread"):
-            files[f"14_{name}{suffix}.csv"] = StudyTable(("trunk",), _part(trunk.summarise, name))
-        for name in ("rmse", "parity", "tip_win", "collapse"):
-            files[f"15_one_step_{name}{suffix}.csv"] = StudyTable(
-                ("one_step",), _part(one_step.summarise, name), index=False
-            )
+    for study, (summarise, prefix, parts, index) in SUMMARIES.items():
+        for suffix in ("", "_paper"):  # notebooks 14 and 15 write their paper tables under both names
+            for part in parts:
+                files[f"{prefix}{part}{suffix}.csv"] = StudyTable((study,), summarise, index, part)
     return files
 
 
 FILES = _per_study_files()
 
 
+def _entries(names) -> list[StudyTable]:
+    if unknown := [name for name in names if name not in FILES]:
+        raise ValueError(f"{unknown} not a registered result file; expected some of {sorted(FILES)}")
+    return [FILES[name] for name in names]
+
+
+def _tables(names, rows) -> dict[str, pd.DataFrame]:
+    """The registered tables ``names`` from ``rows`` ({study: its rows}); each ``make`` runs once."""
+    made, tables = {}, {}  # (make, studies) -> what it returned
+    for name, entry in zip(names, _entries(names)):
+        key = (entry.make, entry.studies)
+        if key not in made:
+            made[key] = entry.make(*(rows[study] for study in entry.studies))
+        tables[name] = made[key] if entry.part is None else made[key][entry.part]
+    return tables
+
+
 def regenerate(name: str, profile: Profile) -> pd.DataFrame:
     """The table of the registered file ``name`` made anew from ``profile``'s shipped rows."""
-    if name not in FILES:
-        raise ValueError(f"{name!r} is not a registered result file; expected one of {sorted(FILES)}")
-    entry = FILES[name]
-    return entry.make(*(read_sweep(profile, study) for study in entry.studies))
+    (entry,) = _entries([name])
+    return _tables([name], {study: read_sweep(profile, study) for study in entry.studies})[name]
+
+
+def written(name: str, profile: Profile, *rows: pd.DataFrame) -> pd.DataFrame:
+    """The registered table ``name`` made from ``rows`` (the rows of its studies, in the entry's
+    order) and written under the profile's output folder, as a notebook shows and writes it: by
+    construction what ``regenerate`` makes from the same rows."""
+    (entry,) = _entries([name])
+    if len(rows) != len(entry.studies):
+        raise ValueError(f"{name} is made from the rows of {list(entry.studies)}; got {len(rows)} frames of rows")
+    table = _tables([name], dict(zip(entry.studies, rows)))[name]
+    _write(profile, name, table)
+    return table
+
+
+def written_summary(study: str, profile: Profile, rows: pd.DataFrame, suffix: str = "") -> dict[str, pd.DataFrame]:
+    """``written`` for every part of a study's ``summarise`` (``SUMMARIES``), each in its file,
+    ``summarise`` run once (``suffix``: "_paper" for the paper profile's tables beside a ci run's):
+    {part: table}."""
+    if study not in SUMMARIES:
+        raise ValueError(f"study must be one of {sorted(SUMMARIES)}; got {study!r}")
+    _, prefix, parts, _ = SUMMARIES[study]
+    names = [f"{prefix}{part}{suffix}.csv" for part in parts]
+    tables = _tables(names, {study: rows})
+    for name in names:
+        _write(profile, name, tables[name])
+    return {part: tables[name] for part, name in zip(parts, names)}
+
+
+def _write(profile: Profile, name: str, table: pd.DataFrame) -> None:
+    write_text(profile.output_dir / name, table.to_csv(index=FILES[name].index))
