@@ -14,7 +14,6 @@ U_MAX = 4.0  # N, actuation range [-U_MAX, U_MAX] of each differential tension
 DT = 0.01  # s, sampling interval
 
 
-# Fields added after caches were keyed: left out of a key while at their default (Robot.parameters).
 @dataclass(frozen=True)
 class Robot:
     """A cantilevered, cable-driven elastic rod with a circular cross-section.

@@ -69,10 +69,6 @@ def transition_spread(states, u, episodes, **options) -> Spread:
     return conditional_spread(condition, u.reshape(-1, u.shape[-1]), **options)
 
 
-# Fixed before any ran: every variant of ``variants.VARIANTS`` with its
-# own 1000 episodes, the MLP against RF and RF-FWD, 3 seeds, data_size's 20 000 optimiser steps
-# (RF-FWD's surrogate the same), scored on Table I's references (made on the variant's rod)
-# and per step on the variant's held-out episodes; flows also planned with the mean of 16 draws.
 @dataclass(frozen=True, kw_only=True)
 class AmbiguityGrid(Grid):
     variants: tuple[str, ...]  # of ``variants.VARIANTS``
@@ -80,6 +76,10 @@ class AmbiguityGrid(Grid):
     draws: int  # a flow's mean-of-draws plan
 
 
+# Fixed before any ran: every variant of ``variants.VARIANTS`` with its
+# own 1000 episodes, the MLP against RF and RF-FWD, 3 seeds, data_size's 20 000 optimiser steps
+# (RF-FWD's surrogate the same), scored on Table I's references (made on the variant's rod)
+# and per step on the variant's held-out episodes; flows also planned with the mean of 16 draws.
 AMBIGUITY = {
     "ci": AmbiguityGrid(
         variants=("paper", "position-only"),

@@ -17,15 +17,15 @@ from softflow.studies.study import Grid, held_out_plan, trained, unnamed
 from softflow.studies.table1 import table1_references
 
 
-# Fixed before any ran: lambda in {0, 0.03, 0.1, 0.3, 1} x seeds 0-2 at
-# RF-FWD's full paper budget. lambda = 0 is RF and lambda = 1 the shipped RF-FWD: those cells
-# share the table1 study's models (same seeds, same budget), as do the forward surrogates.
 @dataclass(frozen=True, kw_only=True)
 class LambdaGrid(Grid):
     weights: tuple[float, ...]  # lambda, the consistency term's weight
     diagnostic_points: int  # held-out transitions of the consistency diagnostics
 
 
+# Fixed before any ran: lambda in {0, 0.03, 0.1, 0.3, 1} x seeds 0-2 at
+# RF-FWD's full paper budget. lambda = 0 is RF and lambda = 1 the shipped RF-FWD: those cells
+# share the table1 study's models (same seeds, same budget), as do the forward surrogates.
 LAMBDA_GRID = {
     "ci": LambdaGrid(weights=(0.0, 1.0), seeds=(0,), diagnostic_points=2000),
     "paper": LambdaGrid(weights=(0.0, 0.03, 0.1, 0.3, 1.0), seeds=(0, 1, 2), diagnostic_points=20000),

@@ -58,8 +58,7 @@ class Grid:
 
     def budget(self, profile_name: str) -> Profile:
         """The profile the grid's models train with."""
-        profile = get_profile(profile_name)
-        return profile if self.train is None else fixed_budget(profile_name, self.train)
+        return get_profile(profile_name) if self.train is None else fixed_budget(profile_name, self.train)
 
 
 def trained(name: str, profile: Profile, model_kwargs: dict | None = None, seed: int = 0) -> dict:

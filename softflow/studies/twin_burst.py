@@ -15,9 +15,6 @@ from softflow.studies.closed_loop import CAMERA_LATENCY, LOOP_GRID, learning_opt
 from softflow.studies.study import Grid, trained
 
 
-# Fixed before any ran: the burst circle continued to a 0.2 s period (paper profile; the ci
-# profile a short, steep one) under TYPICAL_GAP with 33 ms latency, in the open loop, the
-# integral-corrected closed loop and learning across repetitions; broken as in notebook 05.
 @dataclass(frozen=True, kw_only=True)
 class BurstGrid(Grid):
     modes: tuple[str, ...]  # of closed_loop.LOOP_MODES
@@ -25,6 +22,9 @@ class BurstGrid(Grid):
     duration: float  # s
 
 
+# Fixed before any ran: the burst circle continued to a 0.2 s period (paper profile; the ci
+# profile a short, steep one) under TYPICAL_GAP with 33 ms latency, in the open loop, the
+# integral-corrected closed loop and learning across repetitions; broken as in notebook 05.
 BURST_GRID = {
     "ci": BurstGrid(modes=("open", "closed"), periods=(2.0, 0.3), duration=4.0),
     "paper": BurstGrid(modes=("open", "closed", "closed-ilc"), periods=(5.0, 0.2), duration=12.0 * 4.8 / 3.8),
