@@ -9,8 +9,8 @@
   one batch) beside its step;
 - RF-Physical's prior at batch 1: the inverse-statics grid its step reads (``InverseGrid``)
   beside the table's Gauss-Newton inverse that ``plan`` reads;
-- per control step of RF-FWD for N = 1..20 Euler steps: eager torch vs the lean numpy
-  sampler (LeanFlow), median and p99 over 2000 calls each;
+- per control step of RF-FWD for N = 1..20 Euler steps: eager torch vs the compiled lean
+  sampler (LeanFlow, ``models.kernels``), median and p99 over 2000 calls each;
 - a whole 500-step trajectory planned in one batched call (Controller.plan).
 
 Uses the profile's trained models (default: ci; trains them first if missing).
@@ -107,7 +107,7 @@ def main():
             )
             print(
                 f"N={steps:2d}: eager torch median {1e3 * eager['median']:.3f} ms (p99 {1e3 * eager['p99']:.3f}), "
-                f"lean numpy median {1e3 * fast['median']:.3f} ms (p99 {1e3 * fast['p99']:.3f}), "
+                f"compiled median {1e3 * fast['median']:.3f} ms (p99 {1e3 * fast['p99']:.3f}), "
                 f"{eager['median'] / fast['median']:.1f}x"
             )
     controller = control.Controller(model, args.model)

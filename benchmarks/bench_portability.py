@@ -38,12 +38,14 @@ PATHS = {
         MKL_CBWR="COMPATIBLE",
         OPENBLAS_CORETYPE="Prescott",
         NPY_ENABLE_CPU_FEATURES=NUMPY_SSE42,
+        NUMBA_CPU_NAME="generic",
     ),
     "avx2": dict(
         ATEN_CPU_CAPABILITY="avx2",
         MKL_CBWR="AVX2",
         OPENBLAS_CORETYPE="Haswell",
         NPY_ENABLE_CPU_FEATURES=NUMPY_AVX2,
+        NUMBA_CPU_NAME="haswell",
     ),
 }
 SPREAD_LOG = "SOFTFLOW_NBVAL_SPREAD"  # notebooks/conftest.py logs each tolerant cell's deviation here

@@ -18,6 +18,7 @@ from softflow.models.baselines import InverseMLP, LeanMLP
 from softflow.models.checkpoints import find_checkpoint, identity, load_checkpoint, model_from_checkpoint
 from softflow.models.common import one_thread
 from softflow.models.flow import LeanFlow, RectifiedFlow
+from softflow.models.kernels import within
 from softflow.models.registry import CONTROLLERS
 from softflow.profiles import get_profile
 from softflow.rod.dynamics import Simulator
@@ -112,7 +113,7 @@ class Controller:
 
     def step(self, x_t, x_next, *, clip: bool = True) -> np.ndarray:
         """u_t for one transition, (d,), (d,) -> (m,), or a batch, (B, d), (B, d) -> (B, m): the
-        real-time path (plain numpy, no autograd), the same u as ``plan`` to about 1e-5 N.
+        real-time path (one compiled call, ``models.kernels``; no autograd), the same u as ``plan`` to about 1e-5 N.
         A flow starts from z = 0, as ``plan`` does. u beyond the actuator range is clipped,
         with a ``SaturationWarning`` (``clip=False``: returned as the model gives it, for a
         loop that adds its own correction first). A state outside the workspace is refused, as
@@ -133,7 +134,6 @@ class Controller:
             if self.generative
             else self.lean.predict(window, prior)
         )
-        u = u.astype(np.float64)
         if clip:
             u = self._clip(u, "stepped")
         return u[0] if unbatched else u
@@ -152,7 +152,7 @@ class Controller:
         window = np.broadcast_to(window, (n, *window.shape)).reshape(n * B, *window.shape[1:])  # (n B, 2, d)
         prior = self._prior(window)
         rng = self._rng if seed is None else np.random.default_rng(seed)
-        u = self.lean.predict(window, rng.standard_normal((n * B, m)), prior).astype(np.float64).reshape(n, B, m)
+        u = self.lean.predict(window, rng.standard_normal((n * B, m)), prior).reshape(n, B, m)
         return u[:, 0] if unbatched else u
 
     def _prior(self, window) -> np.ndarray | None:
@@ -167,9 +167,13 @@ class Controller:
         inside the workspace), and whether they were one transition; two float64 states of the
         right size, the real-time case, skip the general conversion."""
         d = self.model.dims.state
-        if all(type(x) is np.ndarray and x.dtype == np.float64 and x.shape == (d,) for x in (x_t, x_next)):
-            window = np.stack((x_t, x_next))[None]  # (1, 2, d)
-            if (np.abs(window - self._centre) <= self._reach).all():  # finite, and inside (NaN compares False)
+        if (
+            type(x_t) is type(x_next) is np.ndarray
+            and x_t.dtype == x_next.dtype == np.float64
+            and x_t.shape == x_next.shape == (d,)
+        ):
+            window = np.array((x_t, x_next))[None]  # (1, 2, d)
+            if within(window, self._centre, self._reach):  # finite, and inside
                 return window, True
         x, unbatched = as_real_array(x_t, "x_t", (None, d), allow_unbatched=True)
         x_next, _ = as_real_array(x_next, "x_next", x.shape[1:] if unbatched else x.shape)

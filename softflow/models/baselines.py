@@ -5,10 +5,11 @@ the prior without the generative model, to tell their benefits apart."""
 
 from __future__ import annotations
 
+import numpy as np
 import torch
 from torch import nn
 
-from .common import PAPER_DIMS, Dims, InverseModel, LeanModel, mlp
+from .common import PAPER_DIMS, Dims, InverseModel, LeanModel, aligned, mlp
 
 
 class _Regression(InverseModel):
@@ -44,20 +45,19 @@ class PhysicalMLP(InverseMLP):
 
 
 class LeanMLP(LeanModel):
-    """``InverseMLP.predict`` (and ``PhysicalMLP``'s) in plain numpy float32, for the real-time
-    step (same u to ~1e-6 N)."""
+    """``InverseMLP.predict`` (and ``PhysicalMLP``'s) through the compiled step
+    (``kernels.network``, float32; same u to ~1e-6 N): one pass with no time or xi input."""
 
     def __init__(self, model: InverseMLP):
         super().__init__(model, model.net)
-        self.w_first, self.b_first = self.fold_features(*self.weights[0])
+        self.first = self.fold_features(*self.weights[0])
+        H = len(self.first[1])
+        self.no_time, self.no_xi = aligned(np.zeros((1, H))), aligned(np.zeros((self.inputs, H)))
 
     def predict(self, window, prior=None):
-        """u (B, m) for state windows (B, 2, d) [x_t, x_{t+1}] (and the prior u_phys (B, m))."""
-        h = self.first_layer(window, prior, self.w_first, self.b_first)  # (B, H)
-        for w, b in self.weights[1:]:
-            h = self.silu(h) @ w + b
-        u = h * self.u_std + self.u_mean
-        return u + prior if self.prior else u
+        """u (B, m) float64 for state windows (B, 2, d) [x_t, x_{t+1}] (and the prior u_phys (B, m))."""
+        xi = np.zeros((len(window), self.inputs), np.float32)
+        return self.run(window, prior, self.first, self.no_time, self.no_xi, xi)
 
 
 class InverseLSTM(_Regression):

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from .common import PAPER_DIMS, Dims, InverseModel, LeanModel, mlp
+from .common import PAPER_DIMS, Dims, InverseModel, LeanModel, aligned, mlp
 from .forward import ForwardModel
 
 
@@ -155,43 +155,35 @@ class MeanFlow(RectifiedFlow):
 
 
 class LeanFlow(LeanModel):
-    """The same sampler as ``RectifiedFlow.predict`` (and ``MeanFlow``'s) in plain numpy, for
-    low-latency planning.
+    """The same sampler as ``RectifiedFlow.predict`` (and ``MeanFlow``'s) through the compiled
+    step (``kernels.network``), for low-latency planning.
 
     Fuses what the Euler loop repeats: the condition's contribution to the first layer is
     computed once per call, not once per step, and there is no autograd or dispatch
-    overhead. Computes in float32, the precision the model was trained in (half the
-    matmul time of float64); gives the torch model's u to about 1e-6 N."""
+    overhead. Computes in float32, the precision the model was trained in; gives the torch
+    model's u to about 1e-6 N."""
 
     def __init__(self, model: RectifiedFlow):
         super().__init__(model, model.net)
         first, b = self.weights[0]
         m = model.dims.inputs
-        self.w_xi, self.w_tau, self.w_condition = first[:m], first[m], first[m + model.times :]
+        self.w_xi, self.w_tau, self.w_condition = aligned(first[:m]), first[m], first[m + model.times :]
         self.w_span = first[m + 1] if model.times == 2 else np.zeros_like(self.w_tau)  # MeanFlow's span h
-        self.w_first, self.b_first = self.fold_features(self.w_condition, b)
+        self.first = self.fold_features(self.w_condition, b)
         self.steps = model.steps
         self._time_weights = {}  # Euler steps n -> the time's share of the first layer at each step
 
     def predict(
         self, window: np.ndarray, noise: np.ndarray | None, prior: np.ndarray | None = None, steps: int | None = None
     ):
-        """u (B, m) for state windows (B, 2, d) [x_t, x_{t+1}] and noise z (B, m); None: z = 0, where
-        the first step's xi @ W is zero and skipped."""
-        first_bias = self.first_layer(window, prior, self.w_first, self.b_first)  # (B, H), once per call
+        """u (B, m) float64 for state windows (B, 2, d) [x_t, x_{t+1}] and noise z (B, m); None: z = 0."""
         n = self.steps if steps is None else steps
-        xi = None if noise is None else np.array(noise, dtype=np.float32)
-        for time_weight in self.time_weights(n):
-            h = first_bias + time_weight if xi is None else xi @ self.w_xi + time_weight + first_bias
-            for w, b in self.weights[1:]:
-                h = self.silu(h) @ w + b
-            xi = h / n if xi is None else xi + h / n
-        u = xi * self.u_std + self.u_mean
-        return u + prior if self.prior else u
+        xi = np.zeros((len(window), self.inputs), np.float32) if noise is None else np.array(noise, np.float32)
+        return self.run(window, prior, self.first, self.time_weights(n), self.w_xi, xi)
 
-    def time_weights(self, n: int) -> list[np.ndarray]:
-        """The time's share of the first layer at each of ``n`` Euler steps, (H,) each: tau = k / n
+    def time_weights(self, n: int) -> np.ndarray:
+        """The time's share of the first layer at each of ``n`` Euler steps, (n, H) float32: tau = k / n
         and a one-step flow's span 1 / n. Computed once per n."""
         if n not in self._time_weights:
-            self._time_weights[n] = [(k / n) * self.w_tau + self.w_span / n for k in range(n)]
+            self._time_weights[n] = aligned([(k / n) * self.w_tau + self.w_span / n for k in range(n)])
         return self._time_weights[n]

@@ -165,7 +165,7 @@ def claims(profile: Profile) -> pd.DataFrame:
             "Inference per step, batch 1 (ms)",
             "0.995",
             f"{latency:.3f} (eager torch, N = 4)",
-            "a smaller network on a CPU; `make bench` also times a lean numpy path",
+            "a smaller network on a CPU; `Controller.step`, one compiled call, is faster still (README, Speed)",
         ),
     ]
     return pd.DataFrame(rows, columns=["claim", "paper", "ours", "what the measurements say"]).set_index("claim")

@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 from scipy.interpolate import RectBivariateSpline
 from scipy.optimize import least_squares
 from tqdm import tqdm
@@ -400,62 +401,27 @@ class InverseGrid:
             valid=lambda a: a.get("u") is not None and a["u"].shape == (int(np.prod(self.shape)), 2),
         )
         self.u, self.kink = arrays["u"], arrays["kink"].ravel()
-        strides = np.array([arcs * lengths, lengths, 1])
-        self.strides, self.cell_strides = strides, np.array([(arcs - 1) * (lengths - 1), lengths - 1, 1])
-        self.corners = np.array(list(np.ndindex(2, 2, 2))) @ strides  # (8,) flat offsets of a cell's corners
+        self.strides = np.array([arcs * lengths, lengths, 1])
+        self.cell_strides = np.array([(arcs - 1) * (lengths - 1), lengths - 1, 1])
+        self.corners = np.array(list(np.ndindex(2, 2, 2))) @ self.strides  # (8,) flat offsets of a cell's corners
         self.arc_scale = 2 * table.robot.bending_stiffness / table.robot.cable_radius / table.robot.length
-        self._low, self._spacing, self._shape = self.low.tolist(), self.spacing.tolist(), self.shape.tolist()
-        self._strides, self._cell_strides = strides.tolist(), self.cell_strides.tolist()  # for _inverse_point
 
     def inverse(self, p) -> np.ndarray:
         """u (B, 2) for tip positions p (B, 3), as ``StaticTable.inverse`` to 1e-3 N."""
-        if len(p) == 1:  # a controller's step: scalar arithmetic, a fifth of the array path's time
-            u = self._inverse_point(*p[0].tolist())
-            if u is not None:
-                return np.array([u])
-        s, cell, exact = self._locate(p)
-        f = s - cell  # (B, 3) in [0, 1] inside the grid
-        corners = self.u[(cell @ self.strides)[:, None] + self.corners]  # (B, 8, 2)
-        for axis in range(3):  # halve the corners along each axis in turn: 8 -> 4 -> 2 -> 1
-            half = len(self.corners) >> (axis + 1)
-            low, high = corners[:, :half], corners[:, half : 2 * half]
-            corners = low + f[:, axis, None, None] * (high - low)
-        u = corners[:, 0]
+        u, exact = self._interpolate(p)
         if exact.any():
             u[exact] = self.table.inverse(p[exact])
         return u
 
-    def _inverse_point(self, x: float, y: float, z: float) -> list[float] | None:
-        """``inverse`` of one tip point in Python floats, the same operations in the same order as
-        the array path (bit for bit but for libm's hypot and atan2); None where the table solves it."""
-        lateral = math.hypot(y, z)
-        scale = self.arc_scale * math.atan2(lateral, x) / (lateral + 1e-300)
-        (l0, l1, l2), (h0, h1, h2), (n0, n1, n2) = self._low, self._spacing, self._shape
-        s0, s1, s2 = (scale * y - l0) / h0, (scale * z - l1) / h1, (math.hypot(x, lateral) - l2) / h2
-        if not (0 <= s0 <= n0 - 1 and 0 <= s1 <= n1 - 1 and 0 <= s2 <= n2 - 1):
-            return None
-        c0, c1, c2 = min(int(s0), n0 - 2), min(int(s1), n1 - 2), min(int(s2), n2 - 2)
-        k0, k1, k2 = self._cell_strides
-        if self.kink[c0 * k0 + c1 * k1 + c2 * k2]:
-            return None
-        k0, k1, k2 = self._strides
-        corners = self.u[c0 * k0 + c1 * k1 + c2 * k2 + self.corners].ravel().tolist()  # 8 corners x (u1, u2)
-        for f in (s0 - c0, s1 - c1, s2 - c2):  # halve the corners along each axis in turn: 8 -> 4 -> 2 -> 1
-            half = len(corners) // 2
-            corners = [a + f * (b - a) for a, b in zip(corners[:half], corners[half:])]
-        return corners
-
     def solved_by_table(self, p) -> np.ndarray:
         """(B,) bool: the points p (B, 3) that ``inverse`` hands to the table (off the grid, or in
         a cell with a clipped corner)."""
-        return self._locate(p)[2]
+        return self._interpolate(p)[1]
 
-    def _locate(self, p):
-        """Grid units s (B, 3), the cell (B, 3) int and whether the table solves the point (B,)."""
-        s = (self.coordinates(p) - self.low) / self.spacing
-        cell = np.minimum(np.maximum(s, 0).astype(np.int64), self.shape - 2)  # the top face joins the last cell
-        exact = ~((s >= 0) & (s <= self.shape - 1)).all(-1) | self.kink[cell @ self.cell_strides]
-        return s, cell, exact
+    def _interpolate(self, p):
+        p = np.ascontiguousarray(p, dtype=np.float64)
+        grid = (self.low, self.spacing, self.shape, self.strides, self.cell_strides, self.corners, self.kink, self.u)
+        return _trilinear(p, *grid, self.arc_scale)
 
     def coordinates(self, p) -> np.ndarray:
         """(arc actuation (2), chord length) (B, 3) of tip points p (B, 3): ``arc_actuation`` with the
@@ -464,6 +430,50 @@ class InverseGrid:
         half_bend = np.arctan2(lateral, p[:, 0])
         scale = (self.arc_scale * half_bend / (lateral + 1e-300))[:, None]  # on the axis y = z = 0: a = 0
         return np.concatenate([scale * p[:, 1:], np.hypot(p[:, 0], lateral)[:, None]], -1)
+
+
+@njit(cache=True)
+def _trilinear(p, low, spacing, shape, strides, cell_strides, corners_at, kink, u, arc_scale):
+    """``InverseGrid``'s interpolation of tip points p (B, 3): u (B, 2) trilinear between the 8
+    corners of each point's cell (at flat offsets ``corners_at`` (8,), in ``np.ndindex(2, 2, 2)``
+    order, halved along each axis in turn: 8 -> 4 -> 2 -> 1), and (B,) bool: the points left to
+    the table (off the grid, or a cell with a clipped corner; their u is 0). The coordinates as
+    ``coordinates`` computes them; compiled, because a controller's step reads one point at a
+    time."""
+    B = p.shape[0]
+    out, exact = np.zeros((B, 2)), np.zeros(B, np.bool_)
+    s, cell, corners = np.empty(3), np.empty(3, np.int64), np.empty((8, 2))
+    for b in range(B):
+        x, y, z = p[b, 0], p[b, 1], p[b, 2]
+        lateral = math.hypot(y, z)
+        scale = arc_scale * math.atan2(lateral, x) / (lateral + 1e-300)
+        s[0], s[1], s[2] = (
+            (scale * y - low[0]) / spacing[0],
+            (scale * z - low[1]) / spacing[1],
+            (math.hypot(x, lateral) - low[2]) / spacing[2],
+        )
+        on_grid = True
+        for a in range(3):
+            on_grid &= 0 <= s[a] <= shape[a] - 1
+        if on_grid:
+            for a in range(3):
+                cell[a] = min(int(s[a]), shape[a] - 2)  # the top face joins the last cell
+            on_grid = not kink[cell[0] * cell_strides[0] + cell[1] * cell_strides[1] + cell[2] * cell_strides[2]]
+        if not on_grid:
+            exact[b] = True
+            continue
+        base = cell[0] * strides[0] + cell[1] * strides[1] + cell[2] * strides[2]
+        for c in range(8):
+            corners[c] = u[base + corners_at[c]]
+        half = 8
+        for a in range(3):
+            half >>= 1
+            f = s[a] - cell[a]
+            for c in range(half):
+                for o in range(2):
+                    corners[c, o] = corners[c, o] + f * (corners[c + half, o] - corners[c, o])
+        out[b] = corners[0]
+    return out, exact
 
 
 def _chord_point(robot: Robot, coordinates):
