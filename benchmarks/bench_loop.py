@@ -86,7 +86,7 @@ def summary(run: dict) -> dict:
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--profile", default="ci")
-    parser.add_argument("--models", default="mlp,rf-fwd,rf-physical,rf-1,rf-fwd-1,rf-physical-1")
+    parser.add_argument("--models", default="mlp,rf,rf-fwd,rf-physical,rf-1,rf-fwd-1,rf-physical-1")
     parser.add_argument("--seconds", type=float, default=60.0)
     args = parser.parse_args()
     profile = get_profile(args.profile)
