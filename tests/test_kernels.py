@@ -14,7 +14,7 @@ import torch
 from softflow.models.baselines import InverseMLP, LeanMLP
 from softflow.models.common import Dims
 from softflow.models.flow import LeanFlow, MeanFlow, RectifiedFlow
-from softflow.models.kernels import _silu, within
+from softflow.models.kernels import _silu, inside
 from softflow.rod.statics import _trilinear
 
 DIMS = Dims(inputs=3, position=2)  # not the paper's sizes: nothing may assume them
@@ -73,11 +73,11 @@ def test_silu_is_within_float32_of_the_exact_value():
     assert abs(out[-4]) < 1e-7 and out[-3] == h[-3] and out[-2] == 0  # far below zero ~0, far above h
 
 
-def test_within_refuses_a_state_outside_or_not_finite():
-    centre, reach = np.array([0.0, 1.0]), np.array([1.0, np.finfo(float).max])
-    assert within(np.array([[[1.0, -5.0], [-1.0, 1e300]]]), centre, reach)  # on the bound is inside
+def test_inside_refuses_a_value_outside_the_box_or_not_finite():
+    low, high = np.array([-1.0, -np.finfo(float).max]), np.array([1.0, np.finfo(float).max])
+    assert inside(np.array([[1.0, -5.0], [-1.0, 1e300]]), low, high)  # on the bound is inside
     for bad in ([1.0 + 1e-12, 0.0], [np.nan, 0.0], [0.0, np.inf], [0.0, np.nan]):
-        assert not within(np.array([[[0.0, 0.0], bad]]), centre, reach), bad
+        assert not inside(np.array([[0.0, 0.0], bad]), low, high), bad
 
 
 def test_the_grid_interpolation_is_exact_for_a_linear_field():

@@ -18,7 +18,7 @@ from softflow.models.baselines import InverseMLP, LeanMLP
 from softflow.models.checkpoints import find_checkpoint, identity, load_checkpoint, model_from_checkpoint
 from softflow.models.common import one_thread
 from softflow.models.flow import LeanFlow, RectifiedFlow
-from softflow.models.kernels import within
+from softflow.models.kernels import inside
 from softflow.models.registry import CONTROLLERS
 from softflow.profiles import get_profile
 from softflow.rod.dynamics import Simulator
@@ -105,7 +105,7 @@ class Controller:
             symmetric = (low == -high).all() and (high == high[0]).all()
             bounds = [f"{a:g} to {b:g}" for a, b in zip(low, high)]
             self._range = f"the input range +-{high[0]:g}" if symmetric else f"the input ranges {', '.join(bounds)}"
-        self._inside_all = (np.max(self._low), np.min(self._high))  # u inside these is inside every input's range
+        self._u_box = self.input_range  # (m,) each: step's check of u, in one compiled call
         self.generative = isinstance(model, RectifiedFlow)
         self.statics = Simulator(robot, gravity).static_table() if model.needs_statics else None
         self.statics_grid = InverseGrid(self.statics) if self.statics is not None else None  # step's prior
@@ -172,9 +172,9 @@ class Controller:
             and x_t.dtype == x_next.dtype == np.float64
             and x_t.shape == x_next.shape == (d,)
         ):
-            window = np.array((x_t, x_next))[None]  # (1, 2, d)
-            if within(window, self._centre, self._reach):  # finite, and inside
-                return window, True
+            pair = np.array((x_t, x_next))  # (2, d)
+            if inside(pair, *self._state_box):  # finite, and inside the workspace
+                return pair[None], True
         x, unbatched = as_real_array(x_t, "x_t", (None, d), allow_unbatched=True)
         x_next, _ = as_real_array(x_next, "x_next", x.shape[1:] if unbatched else x.shape)
         window = np.stack([x, x_next[None] if unbatched else x_next], 1)
@@ -186,7 +186,7 @@ class Controller:
     def _clip(self, u, what: str) -> np.ndarray:
         """u (..., m) clipped to the input range, with a ``SaturationWarning`` that counts the
         values clipped (3 levels up: the caller of ``plan`` or ``step``)."""
-        if self._inside_all[0] <= u.min() and u.max() <= self._inside_all[1]:  # the usual case, in two reductions
+        if inside(u.reshape(-1, u.shape[-1]), *self._u_box):  # the usual case
             return u
         kept = np.clip(u, self._low, self._high)
         if (kept != u).any():
@@ -267,16 +267,17 @@ class Controller:
 
     @workspace_margin.setter
     def workspace_margin(self, margin: float | None):
-        """The margin, and the tip-position half-widths it sets, computed here once so that a
-        step's check is one vectorised compare."""
+        """The margin, and the box of tip positions it sets, mean -+ margin x std, computed here once
+        so that a step's check is one compiled call."""
         if margin is not None and not margin > 0:
             raise ValueError(f"workspace_margin must be positive or None; got {margin!r}")
         self._margin = margin
         d, p = self.model.dims.state, len(self._mean)
-        self._centre = np.concatenate([self._mean, np.zeros(d - p)])  # (d,): a step's check, in one compare
-        self._reach = np.full(d, np.finfo(np.float64).max)  # any finite value, where nothing is refused
+        largest = np.finfo(np.float64).max  # any finite value, where nothing is refused
+        self._state_box = np.full(d, -largest), np.full(d, largest)  # (d,) each
         if margin is not None:
-            self._halfwidth = self._reach[:p] = margin * self._std
+            self._halfwidth = margin * self._std
+            self._state_box[0][:p], self._state_box[1][:p] = self._mean - self._halfwidth, self._mean + self._halfwidth
 
     @property
     def workspace(self) -> tuple[np.ndarray, np.ndarray | None]:
@@ -294,7 +295,8 @@ class Controller:
         """Whether a tip position of states X (..., d) lies beyond the workspace margin."""
         if self._margin is None:
             return False
-        return bool((np.abs(X[..., : len(self._mean)] - self._mean) > self._halfwidth).any())
+        (low, high), p = self._state_box, len(self._mean)
+        return bool(((X[..., :p] < low[:p]) | (X[..., :p] > high[:p])).any())
 
     def check_workspace(self, X, name: str = "reference"):
         """Refuse states X (..., d) far outside the training states (unit mistakes, another rod);
