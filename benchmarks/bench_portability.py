@@ -80,7 +80,10 @@ def numeric_spread(native: Path, other: Path) -> dict:
         mine = other / path.name
         if not mine.exists():
             continue
-        a, b = pd.read_csv(path), pd.read_csv(mine)
+        try:
+            a, b = pd.read_csv(path), pd.read_csv(mine)
+        except pd.errors.EmptyDataError:  # a table without columns (a notebook's empty result): no numbers
+            continue
         numbers = [c for c in a.columns if pd.api.types.is_float_dtype(a[c]) and c in b and len(a) == len(b)]
         numbers = [c for c in numbers if not c.endswith(("seconds", "minutes", "_ms", "_min"))]  # wall times
         if not numbers:
