@@ -96,16 +96,20 @@ class Controller:
         self.u_limit, self.observe, self.workspace_margin = float(u_limit), observe, workspace_margin
         self.delay_steps, self.tip_columns = delay_steps, tuple(tip_columns)
         self.dt = dt if dt is not None else DT if robot is not None else None
-        self._low, self._high, self._range = -self.u_limit, self.u_limit, f"the actuator range +-{self.u_limit:g} N"
+        m = model.dims.inputs
+        self._low, self._high = (
+            np.full(m, -self.u_limit),
+            np.full(m, self.u_limit),
+        )  # (m,) each: the box u is clipped to
+        self._range = f"the actuator range +-{self.u_limit:g} N"
         if u_range is not None:
-            low, high = (np.broadcast_to(np.asarray(b, np.float64), (model.dims.inputs,)) for b in u_range)
+            low, high = (np.broadcast_to(np.asarray(b, np.float64), (m,)).copy() for b in u_range)
             if not (np.isfinite(low).all() and np.isfinite(high).all() and (low <= high).all()):
                 raise ValueError(f"u_range must be (low, high) with low <= high for each input; got {u_range!r}")
             self._low, self._high, self.u_limit = low, high, float(np.abs([low, high]).max())
             symmetric = (low == -high).all() and (high == high[0]).all()
             bounds = [f"{a:g} to {b:g}" for a, b in zip(low, high)]
             self._range = f"the input range +-{high[0]:g}" if symmetric else f"the input ranges {', '.join(bounds)}"
-        self._u_box = self.input_range  # (m,) each: step's check of u, in one compiled call
         self.generative = isinstance(model, RectifiedFlow)
         self.statics = Simulator(robot, gravity).static_table() if model.needs_statics else None
         self.statics_grid = InverseGrid(self.statics) if self.statics is not None else None  # step's prior
@@ -186,7 +190,7 @@ class Controller:
     def _clip(self, u, what: str) -> np.ndarray:
         """u (..., m) clipped to the input range, with a ``SaturationWarning`` that counts the
         values clipped (3 levels up: the caller of ``plan`` or ``step``)."""
-        if inside(u.reshape(-1, u.shape[-1]), *self._u_box):  # the usual case
+        if inside(u.reshape(-1, u.shape[-1]), self._low, self._high):  # the usual case
             return u
         kept = np.clip(u, self._low, self._high)
         if (kept != u).any():
@@ -288,8 +292,7 @@ class Controller:
     @property
     def input_range(self) -> tuple[np.ndarray, np.ndarray]:
         """(low, high), (m,) each: the box ``plan`` and ``step`` clip u to."""
-        m = self.model.dims.inputs
-        return tuple(np.broadcast_to(np.asarray(b, np.float64), (m,)).copy() for b in (self._low, self._high))
+        return self._low.copy(), self._high.copy()
 
     def _outside(self, X) -> bool:
         """Whether a tip position of states X (..., d) lies beyond the workspace margin."""

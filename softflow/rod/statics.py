@@ -426,10 +426,7 @@ class InverseGrid:
     def coordinates(self, p) -> np.ndarray:
         """(arc actuation (2), chord length) (B, 3) of tip points p (B, 3): ``arc_actuation`` with the
         heading's cosine and sine taken as y / lateral and z / lateral."""
-        lateral = np.hypot(p[:, 1], p[:, 2])
-        half_bend = np.arctan2(lateral, p[:, 0])
-        scale = (self.arc_scale * half_bend / (lateral + 1e-300))[:, None]  # on the axis y = z = 0: a = 0
-        return np.concatenate([scale * p[:, 1:], np.hypot(p[:, 0], lateral)[:, None]], -1)
+        return _coordinates(np.ascontiguousarray(p, dtype=np.float64), self.arc_scale)
 
 
 @njit(cache=True)
@@ -437,23 +434,16 @@ def _trilinear(p, low, spacing, shape, strides, cell_strides, corners_at, kink, 
     """``InverseGrid``'s interpolation of tip points p (B, 3): u (B, 2) trilinear between the 8
     corners of each point's cell (at flat offsets ``corners_at`` (8,), in ``np.ndindex(2, 2, 2)``
     order, halved along each axis in turn: 8 -> 4 -> 2 -> 1), and (B,) bool: the points left to
-    the table (off the grid, or a cell with a clipped corner; their u is 0). The coordinates as
-    ``coordinates`` computes them; compiled, because a controller's step reads one point at a
-    time."""
+    the table (off the grid, or a cell with a clipped corner; their u is 0). Compiled, because a
+    controller's step reads one point at a time."""
     B = p.shape[0]
     out, exact = np.zeros((B, 2)), np.zeros(B, np.bool_)
     s, cell, corners = np.empty(3), np.empty(3, np.int64), np.empty((8, 2))
+    coordinates = _coordinates(p, arc_scale)  # (B, 3)
     for b in range(B):
-        x, y, z = p[b, 0], p[b, 1], p[b, 2]
-        lateral = math.hypot(y, z)
-        scale = arc_scale * math.atan2(lateral, x) / (lateral + 1e-300)
-        s[0], s[1], s[2] = (
-            (scale * y - low[0]) / spacing[0],
-            (scale * z - low[1]) / spacing[1],
-            (math.hypot(x, lateral) - low[2]) / spacing[2],
-        )
         on_grid = True
         for a in range(3):
+            s[a] = (coordinates[b, a] - low[a]) / spacing[a]
             on_grid &= 0 <= s[a] <= shape[a] - 1
         if on_grid:
             for a in range(3):
@@ -474,6 +464,18 @@ def _trilinear(p, low, spacing, shape, strides, cell_strides, corners_at, kink, 
                     corners[c, o] = corners[c, o] + f * (corners[c + half, o] - corners[c, o])
         out[b] = corners[0]
     return out, exact
+
+
+@njit(cache=True)
+def _coordinates(p, arc_scale):
+    """``InverseGrid.coordinates`` of tip points p (B, 3) float64, compiled for ``_trilinear``."""
+    out = np.empty((p.shape[0], 3))
+    for b in range(p.shape[0]):
+        x, y, z = p[b, 0], p[b, 1], p[b, 2]
+        lateral = math.hypot(y, z)
+        scale = arc_scale * math.atan2(lateral, x) / (lateral + 1e-300)  # on the axis y = z = 0: a = 0
+        out[b, 0], out[b, 1], out[b, 2] = scale * y, scale * z, math.hypot(x, lateral)
+    return out
 
 
 def _chord_point(robot: Robot, coordinates):
