@@ -170,10 +170,10 @@ def build_parser() -> argparse.ArgumentParser:
     sub = verb(
         "export",
         _export,
-        "motor commands for a planned shape: a CSV time_s,l1_mm,... (docs/real_robot.md), hardware rod by default; "
-        "--onnx: the model's real-time step as one ONNX graph instead",
+        "motor commands for a planned shape: a CSV time_s,l1_mm,... (docs/real_robot.md; --robot hw for the "
+        "hardware twin); --onnx: the model's real-time step as one ONNX graph instead",
     )
-    _model_options(sub, robot=HW_ROBOT.name)
+    _model_options(sub)
     _shape_options(sub, out_required=False)
     sub.add_argument(
         "--onnx",
@@ -191,17 +191,20 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _rod_options(sub, robot: str = SIM_ROBOT.name):
+def _rod_options(sub):
+    """The same rod by default for every verb: the paper's simulated rod, hanging."""
     sub.add_argument("--profile", default="paper", choices=sorted(PROFILES), help="run size (default: paper)")
-    sub.add_argument("--robot", default=robot, choices=sorted(ROBOTS), help=f"the rod (default: {robot})")
+    sub.add_argument(
+        "--robot", default=SIM_ROBOT.name, choices=sorted(ROBOTS), help=f"the rod (default: {SIM_ROBOT.name})"
+    )
     sub.add_argument(
         "--gravity", default="vertical", choices=list(GRAVITY_DIRECTIONS), help="configuration (default: vertical)"
     )
 
 
-def _model_options(sub, robot: str = SIM_ROBOT.name):
+def _model_options(sub):
     sub.add_argument("model", metavar="MODEL", choices=CONTROLLERS, help=", ".join(CONTROLLERS))
-    _rod_options(sub, robot)
+    _rod_options(sub)
 
 
 def _recording_options(group):

@@ -119,7 +119,7 @@ def test_export_writes_notebook_06s_command_file(tmp_path, capsys, references_ca
     """The vertical twin's circle, planned by the shipped twin model and made into motor commands
     as docs/real_robot.md does: the file notebook 06 committed, to its last written digit."""
     out = tmp_path / "circle.csv"
-    lines = run(capsys, "export", "rf-fwd", "--shape", "circle", "--out", str(out))
+    lines = run(capsys, "export", "rf-fwd", "--robot", "hw", "--shape", "circle", "--out", str(out))
     assert lines[-1] == str(out)
     assert out.read_text().startswith("time_s,l1_mm,l2_mm,l3_mm\n")  # the hardware rod's three cables
     written = pd.read_csv(out)
@@ -179,3 +179,25 @@ def test_train_prints_the_checkpoint_it_wrote_last(tmp_path, capsys, monkeypatch
     folder = tmp_path / "ci" / rod_folder(HW_ROBOT, "vertical")
     assert lines[-2:] == [str(folder / "mlp.pt"), str(folder / "rf.pt")]
     assert lines[0].startswith("mlp: 1 epochs")
+
+
+def test_every_verb_of_a_model_or_a_rod_defaults_to_the_same_rod(tmp_path, capsys):
+    """`export rf-fwd-1 --onnx F` finds the model `train rf-fwd-1` makes: a verb with a rod of its
+    own would look for a checkpoint that no default command trains."""
+    verbs = cli.build_parser()._subparsers._group_actions[0].choices
+    defaults = {
+        name: (verb.get_default("robot"), verb.get_default("gravity"))
+        for name, verb in verbs.items()
+        if any(action.dest == "robot" for action in verb._actions)
+    }
+    assert {"data", "train", "plan", "evaluate", "export"} <= set(defaults)
+    # train's is None (not given, so --recordings can refuse a rod), and then the paper's rod
+    assert set(defaults.values()) - {(None, None)} == {(SIM_ROBOT.name, "vertical")}
+    out = tmp_path / "rf-fwd-1.onnx"
+    assert run(capsys, "export", "rf-fwd-1", "--onnx", str(out))[-1] == str(out) and out.stat().st_size > 0
+
+
+def test_a_missing_model_names_the_train_command_of_its_rod(capsys):
+    code, err = exit_code(capsys, "export", "rf-fwd-1", "--robot", "hw", "--onnx", "f.onnx")
+    assert code == 2
+    assert "train it with: python -m softflow train --profile paper --robot hw --gravity vertical rf-fwd-1" in err

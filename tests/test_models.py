@@ -98,7 +98,7 @@ def test_a_corrupt_checkpoint_is_reported_by_path(tmp_path):
 
 def test_missing_controller_names_the_command_that_trains_it(tmp_path, monkeypatch):
     monkeypatch.setattr(checkpoints, "TRAINED", tmp_path)
-    with pytest.raises(ValueError, match="python -m softflow train --profile ci mlp"):
+    with pytest.raises(ValueError, match="python -m softflow train --profile ci --robot sim --gravity vertical mlp"):
         control.load_controller("mlp", profile="ci")
     with pytest.raises(ValueError, match="profile must be one of"):
         control.load_controller("mlp", profile="nonexistent")

@@ -408,7 +408,8 @@ def load_controller(
     _check_controller(name)
     if recordings is None:
         path, current = find_trained(name, profile, robot, gravity)
-        what, command = f"profile {profile!r} and rod {robot.name!r} / {gravity!r}", f"--profile {profile} {name}"
+        what = f"profile {profile!r} and rod {robot.name!r} / {gravity!r}"
+        command = f"--profile {profile} --robot {robot.name} --gravity {gravity} {name}"
     else:
         given = recordings if isinstance(recordings, Dataset) else load_recordings(recordings)
         path, current = find_trained(name, profile, recordings=given)
