@@ -13,7 +13,7 @@ PROFILE ?= paper
 BENCH_PROFILE ?= ci
 NOTEBOOKS := $(sort $(wildcard notebooks/[0-9]*.ipynb))
 
-.PHONY: venv test lint reproduce readme study bench bench-setup portability lab clean lock strip
+.PHONY: venv test lint reproduce readme study bench bench-setup bench-reproduce portability lab clean lock strip
 
 venv: $(STAMP)
 
@@ -119,6 +119,11 @@ bench: $(STAMP) $(ELASTICA)  # PyElastica is a benchmark-only dependency, in its
 bench-setup: $(STAMP)
 	$(PY) benchmarks/bench_fresh_clone.py
 	$(PY) benchmarks/bench_notebooks.py
+
+# The main job as a new user meets it: make venv + make reproduce on a fresh clone of this commit,
+# timed per notebook (about half an hour on two cores; run it with the cores free).
+bench-reproduce: $(STAMP)
+	$(PY) benchmarks/bench_reproduce.py
 
 # make test on fresh clones under three kernel paths forced by the environment (native, generic
 # x86-64, AVX2), one after the other (about three times make test): figures/bench/portability*.csv.
