@@ -72,17 +72,25 @@ def read_npz(path) -> dict | None:
         return None
 
 
-def cached_arrays(path, compute, valid=None) -> dict:
-    """The arrays cached at ``path``, else its committed copy in ``SHIPPED_CACHE`` (same name, so
-    the same content key); when both are missing, corrupt or fail ``valid``, those of
-    ``compute()`` (a dict of arrays), saved at ``path`` first and read back, so every way returns
-    the same."""
-    for source in (path, SHIPPED_CACHE / Path(path).name):
+def cached_arrays(directory, kind: str, spec: dict, compute, valid=None) -> dict:
+    """The arrays cached as ``cache_file(directory, kind, spec)``, else its committed copy in
+    ``SHIPPED_CACHE`` (same name, so the same content key); when both are missing, corrupt or
+    fail ``valid``, those of ``compute()`` (a dict of arrays), saved first and read back, so every
+    way returns the same. The spec is saved beside the arrays (``spec_file``): a shipped copy then
+    says what made it, so a check can ask today's code whether it still asks for that file."""
+    path = cache_file(directory, kind, spec)
+    for source in (path, SHIPPED_CACHE / path.name):
         arrays = read_npz(source)
         if arrays is not None and (valid is None or valid(arrays)):
             return arrays
+    write_text(spec_file(path), json.dumps(spec, sort_keys=True, indent=1, default=str) + "\n")
     write_npz(path, **compute())
     return read_npz(path)
+
+
+def spec_file(path) -> Path:
+    """Where the spec of the cache file ``path`` is kept: beside it, as JSON."""
+    return Path(path).with_suffix(".json")
 
 
 def cache_file(directory, kind: str, spec: dict) -> Path:

@@ -1,6 +1,7 @@
 """Cache keys follow the numbers, not the source text; writes are all-or-nothing."""
 
 import dataclasses
+import json
 import shutil
 import subprocess
 import sys
@@ -35,35 +36,44 @@ def test_a_failed_write_leaves_the_old_file_and_no_temporary(tmp_path):
 
 
 def test_cached_arrays_compute_once_and_recompute_what_is_corrupt_or_invalid(tmp_path):
-    path, calls = tmp_path / "c.npz", []
+    calls, spec = [], dict(n=3)
 
     def compute():
         calls.append(1)
         return dict(a=np.arange(3.0))
 
-    first = store.cached_arrays(path, compute)
-    again = store.cached_arrays(path, compute)
+    first = store.cached_arrays(tmp_path, "c", spec, compute)
+    again = store.cached_arrays(tmp_path, "c", spec, compute)
     assert len(calls) == 1 and np.array_equal(first["a"], again["a"])
+    path = store.cache_file(tmp_path, "c", spec)
     path.write_bytes(path.read_bytes()[:20])  # a truncated file is never used
-    assert np.array_equal(store.cached_arrays(path, compute)["a"], np.arange(3.0)) and len(calls) == 2
-    store.cached_arrays(path, compute, valid=lambda arrays: "b" in arrays)  # stale layout: rebuilt
+    assert np.array_equal(store.cached_arrays(tmp_path, "c", spec, compute)["a"], np.arange(3.0)) and len(calls) == 2
+    store.cached_arrays(tmp_path, "c", spec, compute, valid=lambda arrays: "b" in arrays)  # stale layout: rebuilt
     assert len(calls) == 3
 
 
+def test_a_cache_file_keeps_the_spec_that_keys_it(tmp_path):
+    spec = dict(simulator=dict(gravity="vertical", dt=0.01), kind="evaluation", cells=(1, 2))
+    store.cached_arrays(tmp_path, "references-evaluation", spec, lambda: dict(a=np.zeros(1)))
+    path = store.cache_file(tmp_path, "references-evaluation", spec)
+    kept = json.loads(store.spec_file(path).read_text())
+    assert kept["cells"] == [1, 2] and path.name == f"references-evaluation-{store.content_key(kept)}.npz"
+
+
 def test_a_shipped_copy_serves_a_missing_cache_and_a_bad_one_is_ignored(tmp_path, monkeypatch):
-    shipped, cache = tmp_path / "shipped", tmp_path / "data"
+    shipped, cache, spec = tmp_path / "shipped", tmp_path / "data", dict(n=4)
     monkeypatch.setattr(store, "SHIPPED_CACHE", shipped)
-    store.write_npz(shipped / "refs-abc.npz", a=np.arange(4.0))
+    store.write_npz(store.cache_file(shipped, "refs", spec), a=np.arange(4.0))
     calls = []
 
     def compute():
         calls.append(1)
         return dict(a=np.zeros(2))
 
-    assert np.array_equal(store.cached_arrays(cache / "refs-abc.npz", compute)["a"], np.arange(4.0)) and not calls
-    assert not (cache / "refs-abc.npz").exists()  # the shipped copy is only read
-    (shipped / "refs-abc.npz").write_bytes(b"not a zip")
-    assert np.array_equal(store.cached_arrays(cache / "refs-abc.npz", compute)["a"], np.zeros(2)) and calls == [1]
+    assert np.array_equal(store.cached_arrays(cache, "refs", spec, compute)["a"], np.arange(4.0)) and not calls
+    assert not cache.exists()  # the shipped copy is only read
+    store.cache_file(shipped, "refs", spec).write_bytes(b"not a zip")
+    assert np.array_equal(store.cached_arrays(cache, "refs", spec, compute)["a"], np.zeros(2)) and calls == [1]
 
 
 def test_the_shipped_evaluation_references_are_what_their_key_computes():
@@ -73,7 +83,7 @@ def test_the_shipped_evaluation_references_are_what_their_key_computes():
     from softflow.rod.dynamics import Simulator
 
     sim = Simulator(SIM_ROBOT)
-    spec = dict(simulator=sim.spec(), kind="evaluation", build="_evaluation_set", version=references.REFERENCE_VERSION)
+    spec = references.references_spec(sim, "evaluation", "_evaluation_set")
     path = store.cache_file(store.SHIPPED_CACHE, "references-evaluation", spec)
     shipped = store.read_npz(path)
     assert shipped is not None, f"{path} is not committed: copy it from data/ after a run"

@@ -171,7 +171,7 @@ def test_the_3d_paths_deepest_points_are_reached_and_the_one_segment_rod_cannot_
 
 def shipped_references(sim, kind, build):
     """The committed copy (``cache/``) of a cached_references entry, by today's key; None if absent."""
-    spec = dict(simulator=sim.spec(), kind=kind, build=build.__name__, version=references.REFERENCE_VERSION)
+    spec = references.references_spec(sim, kind, build.__name__)
     return store.read_npz(store.cache_file(store.SHIPPED_CACHE, f"references-{kind}", spec))
 
 

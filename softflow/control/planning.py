@@ -370,14 +370,26 @@ def find_trained(
     with today's arguments, budget and data): ``models.checkpoints.find_checkpoint`` with the
     identity the profile asks for. ``recordings``: the Dataset of recorded runs it was trained on
     instead of a rod (its folder is named by the Dataset's key). (None, False) when there is none."""
+    wanted, rod = trained_identity(name, profile, robot, gravity, model_kwargs, recordings=recordings)
+    return find_checkpoint(name, profile, wanted, rod, model_kwargs)
+
+
+def trained_identity(
+    name: str,
+    profile: str = "paper",
+    robot: Robot = SIM_ROBOT,
+    gravity: str = "vertical",
+    model_kwargs: dict | None = None,
+    *,
+    recordings: Dataset | None = None,
+) -> tuple[dict, str]:
+    """The identity (``models.checkpoints.identity``) that a current checkpoint of model ``name``
+    records for a profile and rod (or the Dataset of recorded runs), and its rod folder."""
     P = get_profile(profile)
     if recordings is not None:
-        data_key, rod, budget = recordings.key, recordings.key, P.train_config(name)
-    else:
-        data_key, rod = dataset_path(P, robot, gravity).stem, rod_folder(robot, gravity)
-        budget = P.train_config(name, robot.name)
-    wanted = identity(name, model_kwargs, budget, data_key)
-    return find_checkpoint(name, profile, wanted, rod, model_kwargs)
+        return identity(name, model_kwargs, P.train_config(name), recordings.key), recordings.key
+    data_key = dataset_path(P, robot, gravity).stem
+    return identity(name, model_kwargs, P.train_config(name, robot.name), data_key), rod_folder(robot, gravity)
 
 
 def load_controller(

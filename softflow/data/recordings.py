@@ -765,7 +765,9 @@ def load_dataset(
         data = _dataset(compute(), f"recordings-{content_key(spec)}")
     else:
         path = cache_file(data_dir, "recordings", spec)
-        arrays = cached_arrays(path, compute, valid=lambda cached: _dataset(cached, path.stem) is not None)
+        arrays = cached_arrays(
+            data_dir, "recordings", spec, compute, valid=lambda cached: _dataset(cached, path.stem) is not None
+        )
         data = _dataset(arrays, path.stem)
     estimates = np.array([seconds for seconds in data.delays if math.isfinite(seconds)])
     if len(estimates) > 1 and np.subtract(*np.percentile(estimates, [75, 25])) > DELAY_SPREAD * data.dt:

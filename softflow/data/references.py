@@ -28,7 +28,7 @@ from softflow.data.excitation import mixed_excitation, sum_of_sines_excitation
 from softflow.rod import statics
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import DT, U_MAX
-from softflow.store import DATA_DIR, cache_file, cached_arrays
+from softflow.store import DATA_DIR, cached_arrays
 
 REFERENCE_VERSION = 1  # bump when a reference changes (it keys the reference caches)
 NOMINAL_SPEED = 0.15  # m/s, mean tip speed along a structured path
@@ -378,16 +378,22 @@ def _unpack(arrays: dict) -> list[Reference]:
     ]
 
 
+def references_spec(sim: Simulator, kind: str, build: str) -> dict:
+    """What a cached reference set is keyed by: the simulator's numbers, the set's kind, the name
+    of the function that builds it and REFERENCE_VERSION."""
+    return dict(simulator=sim.spec(), kind=kind, build=build, version=REFERENCE_VERSION)
+
+
 def cached_references(sim: Simulator, kind: str, build) -> list[Reference]:
-    """build(sim) -> references, cached under data/ by the simulator's numbers and REFERENCE_VERSION."""
-    spec = dict(simulator=sim.spec(), kind=kind, build=build.__name__, version=REFERENCE_VERSION)
-    return _unpack(
-        cached_arrays(
-            cache_file(DATA_DIR, f"references-{kind}", spec),
-            lambda: _pack(build(sim)),
-            valid=lambda arrays: "names" in arrays,
-        )
+    """build(sim) -> references, cached under data/ by ``references_spec``."""
+    arrays = cached_arrays(
+        DATA_DIR,
+        f"references-{kind}",
+        references_spec(sim, kind, build.__name__),
+        lambda: _pack(build(sim)),
+        valid=lambda arrays: "names" in arrays,
     )
+    return _unpack(arrays)
 
 
 def _evaluation_set(sim: Simulator) -> list[Reference]:

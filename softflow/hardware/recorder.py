@@ -105,19 +105,7 @@ def record_runs(
         raise ValueError(f"workers must be a whole number of processes >= 1; got {workers!r}")
     Simulator(robot, gravity)  # checks gravity
     folder = Path(folder)
-    settings = dict(
-        version=RECORDER_VERSION,
-        robot=robot.name,
-        robot_parameters=robot.parameters(),
-        gravity=gravity,
-        gap=gap.parameters(),
-        seconds=float(seconds),
-        seed=int(seed),
-        latency=float(latency),
-        dropped=float(dropped),
-        excitation="polynomial_excitation, degrees (1, 8), peaks (0.5, U_MAX) N",
-    )
-    _claim(folder, settings)
+    _claim(folder, settings(robot, gravity, gap, seconds, seed, latency, dropped))
     paths = [run_path(folder, run) for run in range(n_runs)]
     missing = [run for run, path in enumerate(paths) if not path.is_file()]
     rig = _Rig(folder, robot, gravity, gap, float(seconds), int(seed), float(latency), float(dropped))
@@ -137,6 +125,24 @@ def record_runs(
                 for done in as_completed([pool.submit(rig.record, runs) for runs in chunks]):
                     bar.update(done.result())
     return paths
+
+
+def settings(robot: Robot, gravity: str, gap: RealityGap, seconds, seed, latency, dropped) -> dict:
+    """What a folder's runs were recorded with, as its ``recorder.json`` claims it (through JSON,
+    so tuples and lists compare equal): a rerun must ask for the same to add runs to it."""
+    made = dict(
+        version=RECORDER_VERSION,
+        robot=robot.name,
+        robot_parameters=robot.parameters(),
+        gravity=gravity,
+        gap=gap.parameters(),
+        seconds=float(seconds),
+        seed=int(seed),
+        latency=float(latency),
+        dropped=float(dropped),
+        excitation="polynomial_excitation, degrees (1, 8), peaks (0.5, U_MAX) N",
+    )
+    return json.loads(json.dumps(made, default=str))
 
 
 @dataclass(frozen=True)
@@ -164,12 +170,10 @@ class _Rig:
         return len(runs)
 
 
-def _claim(folder: Path, settings: dict) -> None:
+def _claim(folder: Path, wanted: dict) -> None:
     """Write the folder's settings, or check that it holds runs recorded with the same ones:
     runs of other settings are never mixed into one folder."""
     file = folder / SETTINGS
-    # through JSON both ways, so tuples and lists compare equal
-    wanted = json.loads(json.dumps(settings, default=str))
     if file.is_file():
         try:
             found = json.loads(file.read_text())

@@ -20,7 +20,7 @@ from tqdm import tqdm
 
 from softflow.checks import as_real_array
 from softflow.rod.robots import U_MAX, Robot
-from softflow.store import DATA_DIR, cache_file, cached_arrays
+from softflow.store import DATA_DIR, cached_arrays
 
 STATICS_VERSION = 1  # bump when a number the table or the solvers produce changes
 # inverse_static refuses a point farther than this fraction of the rod's length from every
@@ -317,6 +317,12 @@ def _two_inputs(sim, name):
         )
 
 
+def table_spec(sim, u_range: float, step: float) -> dict:
+    """What a static table is keyed by: the simulator's numbers, its range and step (N) and
+    STATICS_VERSION."""
+    return dict(simulator=sim.spec(), u_range=u_range, step=step, version=STATICS_VERSION)
+
+
 class StaticTable:
     """Equilibrium tip p(u) on [-u_range, u_range]^2, sampled every ``step`` N, as bicubic
     splines: inverse statics on millions of points in seconds instead of hours."""
@@ -325,7 +331,7 @@ class StaticTable:
         _two_inputs(sim, "StaticTable")
         self.robot, self.u_range = sim.robot, u_range
         grid = np.linspace(-u_range, u_range, int(round(2 * u_range / step)) + 1)
-        self.spec = spec = dict(simulator=sim.spec(), u_range=u_range, step=step, version=STATICS_VERSION)
+        self.spec = table_spec(sim, u_range, step)
 
         def compute():
             u = np.stack(np.meshgrid(grid, grid, indexing="ij"), -1).reshape(-1, 2)
@@ -336,7 +342,9 @@ class StaticTable:
             return dict(tips=np.concatenate(chunks).reshape(len(grid), len(grid), 3))
 
         tips = cached_arrays(
-            cache_file(DATA_DIR, "static-table", spec),
+            DATA_DIR,
+            "static-table",
+            self.spec,
             compute,
             valid=lambda a: a.get("tips") is not None and a["tips"].shape == (len(grid), len(grid), 3),
         )["tips"]
@@ -396,7 +404,9 @@ class InverseGrid:
             return dict(u=u, kink=kink)
 
         arrays = cached_arrays(
-            cache_file(DATA_DIR, "inverse-grid", spec),
+            DATA_DIR,
+            "inverse-grid",
+            spec,
             compute,
             valid=lambda a: a.get("u") is not None and a["u"].shape == (int(np.prod(self.shape)), 2),
         )

@@ -26,7 +26,7 @@ from softflow.control.planning import Controller, evaluate
 from softflow.data.variants import VARIANTS, variant_dataset
 from softflow.profiles import FIXED_BUDGET
 from softflow.rod.dynamics import Simulator
-from softflow.store import cache_file, cached_arrays
+from softflow.store import cached_arrays
 from softflow.studies.study import Grid, held_out_plan, trained, unnamed
 from softflow.studies.table1 import table1_references
 
@@ -150,9 +150,7 @@ def cached_spread(dataset: data.Dataset, workdir: Path) -> dict:
         measured = transition_spread(dataset.states, dataset.u, dataset.train)
         return dict(conditional_spread=measured.spread, conditional_spread_floor=measured.floor)
 
-    cached = cached_arrays(
-        cache_file(workdir, "spread", dict(dataset=dataset.key, episodes=len(dataset.train))), compute
-    )
+    cached = cached_arrays(workdir, "spread", dict(dataset=dataset.key, episodes=len(dataset.train)), compute)
     return {k: float(v) for k, v in cached.items()}
 
 

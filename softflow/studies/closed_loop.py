@@ -16,7 +16,7 @@ from softflow.hardware.calibration import Calibration
 from softflow.profiles import get_profile
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import HW_ROBOT
-from softflow.store import cache_file, cached_arrays
+from softflow.store import cached_arrays
 from softflow.studies.study import Grid, trained
 
 LOOP_MODES = {  # mode -> hardware.run_twin options (repetitions: the profile's)
@@ -134,6 +134,12 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
     return [dict(row, **identified) for row in rows.drop(columns=["gravity", "loop"]).to_dict("records")]
 
 
+def identified_spec(sim: Simulator, gap: hardware.RealityGap, seconds: float) -> dict:
+    """What a cached identification is keyed by: the model rod, the gap it is run across and the
+    excitation's length."""
+    return dict(simulator=sim.spec(), gap=gap.parameters(), seconds=seconds)
+
+
 def identified_twin(sim: Simulator, gap: hardware.RealityGap, seconds: float, workdir: Path):
     """``identification.identify_twin``, cached in the sweep's workdir: the calibrated cells of
     one configuration and gap share the same identification run (deterministic, ~2 min)."""
@@ -146,9 +152,7 @@ def identified_twin(sim: Simulator, gap: hardware.RealityGap, seconds: float, wo
             evaluations=fit.evaluations,
         )
 
-    cached = cached_arrays(
-        cache_file(workdir, "identified", dict(simulator=sim.spec(), gap=gap.parameters(), seconds=seconds)), compute
-    )
+    cached = cached_arrays(workdir, "identified", identified_spec(sim, gap, seconds), compute)
     fitted = hardware.RealityGap(**{term: float(cached[term]) for term in identification.FITTED})
     return identification.Identified(fitted, float(cached["rmse_mm"]), int(cached["evaluations"]))
 

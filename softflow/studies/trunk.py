@@ -41,7 +41,7 @@ from softflow.control.planning import Controller, recorded_range
 from softflow.data import recordings
 from softflow.models.registry import label
 from softflow.profiles import FIXED_BUDGET, TrainConfig
-from softflow.store import REPO, cache_file, cached_arrays
+from softflow.store import REPO, cached_arrays
 from softflow.studies import ambiguity, stats
 from softflow.studies.study import Grid, fixed_budget, trained
 
@@ -236,8 +236,8 @@ def study_delay(profile_name: str, workdir: Path) -> int:
         tip = recordings.read(_file(TRAINING_RUN), inputs=list(INPUTS), tip=list(DISKS[6:]), max_gap=MAX_GAP)
         return dict(delay_steps=np.int64(run.delay_steps), tip_delay_steps=np.int64(tip.delay_steps))
 
-    path = cache_file(workdir, "trunk-delay", dict(file=_file(TRAINING_RUN).name, version=recordings.LOADER_REVISION))
-    return int(cached_arrays(path, compute)["delay_steps"])
+    spec = dict(file=_file(TRAINING_RUN).name, version=recordings.LOADER_REVISION)
+    return int(cached_arrays(workdir, "trunk-delay", spec, compute)["delay_steps"])
 
 
 def paired_run(name: str, observation: str, delay: int, profile_name: str, workdir: Path):
@@ -258,7 +258,7 @@ def paired_run(name: str, observation: str, delay: int, profile_name: str, workd
         return dict(u=u, states=states)
 
     spec = dict(run=name, observation=observation, delay=delay, seconds=seconds, version=recordings.LOADER_REVISION)
-    arrays = cached_arrays(cache_file(workdir, "trunk-run", spec), compute)
+    arrays = cached_arrays(workdir, "trunk-run", spec, compute)
     return arrays["u"], arrays["states"]
 
 

@@ -31,7 +31,7 @@ from softflow.models.registry import model_spec
 from softflow.profiles import FIXED_BUDGET, PROFILES, Profile
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import TWO_SEGMENT_ROD, rod_folder
-from softflow.store import atomic_write, cache_file, cached_arrays
+from softflow.store import atomic_write, cached_arrays
 from softflow.studies import ambiguity
 from softflow.studies.study import FLOOR, Grid, floor_rows, held_out_plan, trained, unnamed
 
@@ -214,7 +214,7 @@ def _true_steps(grid: TwoSegmentGrid, dataset: data.Dataset, sim: Simulator, wor
         return dict(q=q[:, :-1], qd=qd[:, :-1], tip=dataset.states[episodes, 1:, :3])
 
     stem = data.dataset_path(grid.data, TWO_SEGMENT_ROD, GRAVITY).stem
-    return cached_arrays(cache_file(workdir, "true-steps", dict(dataset=stem, episodes=episodes.tolist())), compute)
+    return cached_arrays(workdir, "true-steps", dict(dataset=stem, episodes=episodes.tolist()), compute)
 
 
 def _dataset(profile_name: str, observation: str) -> data.Dataset:
