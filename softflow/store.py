@@ -83,8 +83,9 @@ def cached_arrays(directory, kind: str, spec: dict, compute, valid=None) -> dict
         arrays = read_npz(source)
         if arrays is not None and (valid is None or valid(arrays)):
             return arrays
+    arrays = compute()
     write_text(spec_file(path), json.dumps(spec, sort_keys=True, indent=1, default=str) + "\n")
-    write_npz(path, **compute())
+    write_npz(path, **arrays)
     return read_npz(path)
 
 

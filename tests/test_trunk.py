@@ -73,20 +73,21 @@ def test_the_rule_ranks_where_both_intervals_agree_and_the_judge_tells_naive_fro
     assert check.tells_apart["training-mean"] and not check.tells_apart["persistence"]  # persistence gates nothing
 
 
-def test_the_answer_to_notebook_12_reads_the_verdicts_that_survive_holm():
+def test_the_answer_to_notebook_12_reads_the_rule_registered_before_any_row_not_the_later_holm_family():
     assert trunk.notebook_12_answer(trunk.flow_rule(made_rows(naive_gap=4.0))) == "confirms"  # rf lower at the tip
     assert trunk.notebook_12_answer(trunk.flow_rule(made_rows(naive_gap=0.0))) == "neither"  # the judge ranks nothing
 
-    def rule(tip, disks):  # (best flow, verdict) from the tip alone and with every disk
+    def rule(tip, disks):  # (bootstrap high, t high, holm p) of the best flow's difference per observation
         return pd.DataFrame(
-            dict(observation=["tip", "disks"], best_flow=[tip[0], disks[0]], verdict=[tip[1], disks[1]])
+            dict(observation=["tip", "disks"], **dict(zip(["high", "t_high", "holm_p"], np.transpose([tip, disks]))))
         )
 
-    assert trunk.notebook_12_answer(rule(("rf-fwd", "RF-FWD lower (not after Holm)"), ("rf-fwd", "RF-FWD lower"))) == (
-        "reverses"
-    )
-    assert trunk.notebook_12_answer(rule(("rf", "RF lower"), ("rf-fwd", "RF-FWD lower"))) == "both"
-    assert trunk.notebook_12_answer(rule(("rf", "MLP lower"), ("rf-fwd", "no ranking"))) == "neither"
+    lower, not_after_holm, t_straddles = (-0.3, -0.7, 0.01), (-0.3, -0.7, 0.0517), (-0.3, 0.05, 0.1)
+    unjudged = (-0.3, -0.7, np.nan)  # a family the judge does not pass: never ranked
+    assert trunk.notebook_12_answer(rule(not_after_holm, lower)) == "both"  # the post-hoc family decides nothing
+    assert trunk.notebook_12_answer(rule(t_straddles, lower)) == "reverses"
+    assert trunk.notebook_12_answer(rule(lower, t_straddles)) == "confirms"
+    assert trunk.notebook_12_answer(rule(unjudged, unjudged)) == "neither"
 
 
 def test_a_judge_that_cannot_tell_the_training_mean_from_its_floor_ranks_nothing():

@@ -639,8 +639,7 @@ def trunk_summary(tables: dict, computed: int, cells: int | None) -> str:
         ratios = [f"{observation} {row['spread / floor']:.1f}x" for observation, row in spread.iterrows()]
         sentences.append(f"The conditional spread of u over its estimator floor: {', '.join(ratios)}.")
     if cells and computed == cells and len(rule):
-        answer = trunk.ANSWERS[trunk.notebook_12_answer(rule)]
-        sentences.append(f"Under the study's rules, {answer}.")
+        sentences.append(trunk.answer_sentence(rule))
     return " ".join(sentences)
 
 

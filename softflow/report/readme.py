@@ -146,7 +146,7 @@ def _trunk(rows: pd.DataFrame, cells: int) -> dict:
         fwd_means=int((trained.model == "rf-fwd").sum()),
         computed=int(rows["key"].nunique()) if len(rows) else 0,
         cells=cells,
-        answer=trunk.ANSWERS[trunk.notebook_12_answer(rule)] if len(rule) else None,
+        answer=trunk.answer_sentence(rule) if len(rule) else None,
         observations=[
             dict(observation=observation, range=_range(part.difference_mm, "{:+.2f}"), tally=_tally(part.verdict))
             for observation, part in (rule.groupby("observation", sort=False) if len(rule) else ())
