@@ -242,13 +242,14 @@ def test_bad_arguments_are_refused(tmp_path):
         control.export_onnx(control.load_controller("mlp"), tmp_path)
 
 
-def test_the_cli_writes_the_hardware_rods_graph_by_default(tmp_path, capsys):
-    out = tmp_path / "rf-fwd.onnx"
-    cli.main(["export", "rf-fwd", "--onnx", str(out)])
+@pytest.mark.parametrize("rod", [[], ["--robot", "hw"]], ids=["default", "hw"])
+def test_the_cli_writes_the_paper_rods_graph_by_default_and_the_hardware_rods_on_request(rod, tmp_path, capsys):
+    out, robot = tmp_path / "rf-fwd.onnx", "hw" if rod else "sim"
+    cli.main(["export", "rf-fwd", *rod, "--onnx", str(out)])
     lines = capsys.readouterr().out.strip().splitlines()
-    assert lines[-1] == str(out) and lines[0].startswith("rf-fwd (hw rod, vertical): Controller.step as one ONNX")
+    assert lines[-1] == str(out) and lines[0].startswith(f"rf-fwd ({robot} rod, vertical): Controller.step as one ONNX")
     meta = metadata(out)
-    assert (meta["model"], meta["robot"], meta["gravity"]) == ("rf-fwd", "hw", "vertical")
+    assert (meta["model"], meta["robot"], meta["gravity"]) == ("rf-fwd", robot, "vertical")
 
 
 @pytest.fixture(scope="module")
