@@ -18,7 +18,7 @@ from softflow.store import REPO
 
 CURATED = REPO / "datasets" / "asl_trunk"
 UPSTREAM = REPO.parent / "shared" / "datasets" / "asl_trunk"
-RUNS = ("circles", "random_1", "random_2", "rest")
+RUNS = ("circles", "payload_100g", "payload_300g", "random_1", "random_2", "rest")
 DISKS = [f"{axis}{disk}_m" for disk in (1, 2, 3) for axis in "xyz"]
 TIP = DISKS[6:]
 needs_upstream = pytest.mark.skipif(
@@ -59,6 +59,11 @@ def test_each_run_is_one_observation_more_than_its_inputs_on_a_100_hz_clock():
         heights = table[["y1_m", "y2_m", "y3_m"]].median()  # y is vertical: the disks hang below the base
         assert table[DISKS].notna().all().all() and 0 > heights.y1_m > heights.y2_m > heights.y3_m > -0.4
     assert (pd.read_csv(CURATED / "rest.csv.gz").filter(like="u").fillna(0) == 0).all().all()
+    inputs = [f"u{i}" for i in range(1, 7)]
+    for payload in ("payload_100g", "payload_300g"):  # random_1's inputs replayed with a mass at the tip
+        pd.testing.assert_frame_equal(
+            pd.read_csv(CURATED / f"{payload}.csv.gz")[inputs], pd.read_csv(CURATED / "random_1.csv.gz")[inputs]
+        )
 
 
 @needs_upstream
@@ -101,6 +106,8 @@ LOST = {  # run: (held frames, one-frame jumps) per disk 1, 2, 3, measured (READ
     "random_2": ([61, 105, 33], [6, 38, 1]),
     "circles": ([423, 73, 67], [1, 32, 0]),
     "rest": ([134, 4, 23], [0, 0, 0]),
+    "payload_100g": ([60, 25, 30], [7, 28, 3]),
+    "payload_300g": ([42, 27, 22], [8, 27, 1]),
 }
 
 

@@ -2,7 +2,7 @@
 
     python datasets/asl_trunk/curate.py UPSTREAM_DIR [--out DIR] [--record-sums]
 
-UPSTREAM_DIR holds the seven upstream CSV files of StanfordASL/trunk-stack (commit and folder:
+UPSTREAM_DIR holds the nine upstream CSV files of StanfordASL/trunk-stack (commit and folder:
 README.md), unchanged: each is checked against its SHA-256 below before anything is read. The
 curated files (one gzip-compressed CSV per run, in the project's recording format,
 docs/recordings.md) are written to DIR (default: this folder) and checked against SHA256SUMS
@@ -35,6 +35,8 @@ UPSTREAM = {  # file: SHA-256 (commit 8b4b9234b287a0403d1844821bfad79e36e1f66f)
     "control_inputs_controlled_26.csv": "0f885d73d561eaf1d1c2665293a4906e5acddd71d86a5dfde364721cc8a15eda",
     "htest_circles_amp07_hz02.csv": "c2d7db89099a8f3ba44f664ebd778ac6234462cad9f46525d2349c7ff95a9bf4",
     "observations_controlled_1.csv": "bc4c951556c971d8849e556f067bf041c6de359b630a88d70760738abb836541",
+    "observations_controlled_1_100g.csv": "790953bd1c715a8d6ddafa3e8dbe5e7781727a164119311a0fec99c6e6e2ffc0",
+    "observations_controlled_1_300g.csv": "7153b29b798170b9a4083dd1f7fa9de7ee709df883f272b4af5777f91b7fd9ce",
     "observations_controlled_2.csv": "71d278011a289ba911db18a5299a792673b9ebaf0013ef9f6e423722a282c67f",
     "observations_zeros_0g.csv": "fd9ddb1c95d62ea061701c5923597cf729dfd0019defb4eeda25f4200d3bba27",
 }
@@ -43,6 +45,8 @@ RUNS = {  # curated run: (upstream inputs file or None for all inputs 0, upstrea
     "random_2": ("control_inputs_controlled_2.csv", "observations_controlled_2.csv"),
     "circles": ("control_inputs_controlled_26.csv", "htest_circles_amp07_hz02.csv"),
     "rest": (None, "observations_zeros_0g.csv"),
+    "payload_100g": ("control_inputs_controlled_1.csv", "observations_controlled_1_100g.csv"),  # random_1's inputs
+    "payload_300g": ("control_inputs_controlled_1.csv", "observations_controlled_1_300g.csv"),  # with a tip mass
 }
 RATE = 100  # Hz: ID is the sample index at the nominal rate, time_s = ID / RATE
 INPUTS = [f"u{i}" for i in range(1, 7)]  # servo angles, degrees
@@ -182,7 +186,7 @@ def curate(upstream: Path, out: Path, record_sums: bool = False) -> dict[str, by
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("upstream", type=Path, help="folder holding the seven upstream CSV files")
+    parser.add_argument("upstream", type=Path, help="folder holding the nine upstream CSV files")
     parser.add_argument("--out", type=Path, default=HERE, help="where to write the curated files (default: here)")
     parser.add_argument("--record-sums", action="store_true", help=f"write {SUMS} from the outputs instead of checking")
     args = parser.parse_args(argv)
