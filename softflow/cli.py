@@ -22,6 +22,7 @@ import argparse
 import math
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -47,11 +48,20 @@ def main(argv=None):
     """Run one verb. Bad input (a ValueError, which says what was expected) exits 2 with its
     message, as a bad argument does."""
     args = build_parser().parse_args(sys.argv[1:] if argv is None else list(argv))
+    shown, warnings.formatwarning = warnings.formatwarning, _warning  # a user reads the message, not our source
     try:
         args.run(args)
     except ValueError as error:
         args.parser.error(in_flags(str(error)))
+    finally:
+        warnings.formatwarning = shown
 
+
+def _warning(message, category, *where, **options) -> str:
+    return f"softflow: {in_flags(str(message))}\n"
+
+
+SPLIT_NAMES = {"train": "trains on", "val": "validates on", "test": "tests on"}
 
 # The package's messages name its Python keywords; on the command line they are these flags.
 FLAGS = {
@@ -232,10 +242,9 @@ def _recording_options(group):
     group.add_argument(
         "--fractions",
         type=_fractions,
-        default=(0.8, 0.1),
         metavar="TRAIN,VAL",
-        help="shares of the recordings for training and validation, the rest tested (default: 0.8,0.1; "
-        "split by recording: three recordings need e.g. 0.34,0.34)",
+        help="shares of the recordings for training and validation, the rest tested (split by recording; "
+        "default: one recording in ten validates and one tests, at least one each)",
     )
     group.add_argument(
         "--split-at-gaps",
@@ -334,6 +343,8 @@ def _train(args):
             f"observed {', '.join(dataset.tip_columns)}; input-to-motion delay {dataset.delay_steps} periods "
             f"({dataset.delay_steps * dataset.dt:g} s, {'given' if args.delay is not None else 'estimated'})"
         )
+        for split, files in dataset.split_files.items():
+            print(f"{SPLIT_NAMES[split]}: {', '.join(files)}")
     paths = []
     for name in args.models:
         _, checkpoint = training.ensure_trained(
@@ -362,7 +373,7 @@ def _train(args):
 def _recording_flags(args) -> list[str]:
     """The options of ``_recording_options`` given on the command line."""
     given = [f"--{option}" for option in ("inputs", "tip", "dt", "delay") if getattr(args, option) is not None]
-    return given + ["--split-at-gaps"] * args.split_at_gaps + ["--fractions"] * (args.fractions != (0.8, 0.1))
+    return given + ["--split-at-gaps"] * args.split_at_gaps + ["--fractions"] * (args.fractions is not None)
 
 
 def _recordings(args):

@@ -346,11 +346,32 @@ def test_recordings_must_agree_on_their_columns_and_be_enough_to_split(tmp_path)
         point_mass_run(tmp_path / f"run{i}.csv", rng, 2 + (i == 9), 2, 1.0)
     with pytest.raises(ValueError, match=r"run9\.csv: input columns \['u1', 'u2', 'u3'\] differ"):
         recordings.load_dataset(tmp_path, data_dir=None)
-    with pytest.raises(ValueError, match="2 recordings split by .* leave the validation split empty"):
+    with pytest.raises(ValueError, match="2 recordings with moving inputs cannot be split .* record at least three"):
         recordings.load_dataset(sorted(tmp_path.glob("*.csv"))[:2], data_dir=None)
+    with pytest.raises(ValueError, match=r"3 recordings with moving inputs split by \(0.8, 0.1\) leave the validation"):
+        recordings.load_dataset(sorted(tmp_path.glob("*.csv"))[:3], fractions=(0.8, 0.1), data_dir=None)
     (tmp_path / "empty").mkdir()
     with pytest.raises(ValueError, match=r"empty: no recording files"):
         recordings.load_dataset(tmp_path / "empty", data_dir=None)
+
+
+def test_a_few_runs_split_one_each_by_default_and_a_rest_run_is_left_out(tmp_path):
+    """Four moving runs train on two, validate on one and test on one (named per split); a run
+    whose inputs never change is the noise reference, not a training run."""
+    rng = np.random.default_rng(9)
+    for i in range(4):
+        point_mass_run(tmp_path / f"run{i}.csv", rng, 2, 2, 1.0)
+    rest = pd.read_csv(tmp_path / "run0.csv")
+    rest[["u1", "u2"]] = rest[["u1", "u2"]].where(rest[["u1", "u2"]].isna(), 0.0)
+    rest.to_csv(tmp_path / "rest.csv", index=False)
+    with pytest.warns(UserWarning, match=r"rest\.csv: every input is constant \(a rest run"):
+        data = recordings.load_dataset(tmp_path, delay=0.0, data_dir=None)
+    assert data.resting_files == ("rest.csv",) and len(data.u) == 4  # one episode per moving run
+    named = data.split_files
+    assert [len(named[split]) for split in ("train", "val", "test")] == [2, 1, 1]
+    assert sorted(named["train"] + named["val"] + named["test"]) == [f"run{i}.csv" for i in range(4)]
+    for split, episodes in (("train", data.train), ("val", data.val), ("test", data.test)):  # episode i is run i
+        assert [f"run{i}.csv" for i in episodes] == list(named[split])
 
 
 # ---------------------------------------------------------------------------- compressed files

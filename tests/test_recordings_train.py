@@ -74,6 +74,8 @@ def test_train_prints_the_checkpoint_last_in_a_folder_of_the_recordings(trained)
         assert recorded["dt"] == data.dt == pytest.approx(0.01)
         np.testing.assert_array_equal(recorded["u_max"], data.u.max((0, 1)))
     assert outputs["mlp"][0].startswith(f"{data.key}: ")
+    said = {"trains on": "train", "validates on": "val", "tests on": "test"}
+    assert outputs["mlp"][1:4] == [f"{words}: {', '.join(data.split_files[split])}" for words, split in said.items()]
 
 
 @pytest.mark.parametrize("model", ["mlp", "rf-fwd"])

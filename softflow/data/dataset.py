@@ -56,6 +56,8 @@ class Dataset:
     delays: tuple[float, ...] = ()  # s: the estimated delay of each recording (NaN: too short), if estimated
     input_columns: tuple[str, ...] = ()  # recorded data: the columns the inputs and the tip came from
     tip_columns: tuple[str, ...] = ()
+    split_files: dict | None = None  # recorded data: {"train" | "val" | "test": file names}
+    resting_files: tuple[str, ...] = ()  # recorded data: files left out, their inputs never changing
 
     def __post_init__(self):
         if self.u.ndim != 3 or self.states.ndim != 3 or self.states.shape[:2] != (len(self.u), self.u.shape[1] + 1):

@@ -633,7 +633,7 @@ def load_dataset(
     delay: float | None = None,
     split_at_gaps: bool = False,
     episode_seconds: float | None = None,
-    fractions=(0.8, 0.1),
+    fractions=None,
     seed: int = 0,
     data_dir: Path | None = DATA_DIR,
 ) -> Dataset:
@@ -646,26 +646,24 @@ def load_dataset(
     stretches). Each step is paired with the input sent ``delay`` s before
     (in whole periods: ``Dataset.delay_steps``); None: the median of the recordings' estimates
     (``estimate_delay``, kept in ``Dataset.delays``). Then the recordings are cut into episodes of
-    ``episode_seconds`` (default: the shortest recording; see ``episodes``). The split is by file
-    (``split_episodes`` over the files, with ``fractions`` and ``seed``): every episode of a run
-    lands in the same split. The result is cached under ``data_dir`` (None: not cached) by the
-    files' contents and these options, written atomically after every file was read, so a bad
-    file leaves no cache."""
+    ``episode_seconds`` (default: the shortest recording; see ``episodes``). The split is by file,
+    shuffled by ``seed``: every episode of a run lands in the same split (``Dataset.split_files``
+    names them). ``fractions``: the (train, validation) shares of the files (``split_episodes``);
+    None: one file in ten validates and one in ten tests, at least one each, so three runs
+    already train. A recording whose inputs never change (a rest run: the measurement noise)
+    trains nothing: it is left out of every split, with a warning. The result is cached under
+    ``data_dir`` (None: not cached) by the files' contents and these options, written atomically
+    after every file was read, so a bad file leaves no cache."""
     _check_options(dt, max_gap, noise, jerk, delay)
     if episode_seconds is not None and not (
         isinstance(episode_seconds, (int, float)) and math.isfinite(episode_seconds) and episode_seconds > 0
     ):
         raise ValueError(f"episode_seconds must be None (the shortest recording) or positive; got {episode_seconds!r}")
-    if not (len(fractions) == 2 and all(0 < f < 1 for f in fractions) and sum(fractions) < 1):
-        raise ValueError(f"fractions must be (train, validation) shares in (0, 1) summing below 1; got {fractions!r}")
+    if fractions is not None and not (len(fractions) == 2 and all(0 < f < 1 for f in fractions) and sum(fractions) < 1):
+        raise ValueError(
+            f"fractions must be None or (train, validation) shares in (0, 1) summing below 1; got {fractions!r}"
+        )
     files = recording_files(paths_or_folder)
-    splits = split_episodes(len(files), seed, fractions)
-    for name, chosen in zip(("train", "validation", "test"), splits):
-        if len(chosen) == 0:
-            raise ValueError(
-                f"{len(files)} recordings split by {tuple(fractions)} leave the {name} split empty; "
-                "record more runs or pass other fractions (e.g. (1/3, 1/3) for three)"
-            )
     contents = []
     for path in files:
         try:
@@ -684,7 +682,7 @@ def load_dataset(
         delay=delay,
         split_at_gaps=split_at_gaps,
         episode_seconds=episode_seconds,
-        fractions=list(fractions),
+        fractions=None if fractions is None else list(fractions),
         seed=seed,
         version=RECORDINGS_VERSION,
         revision=LOADER_REVISION,
@@ -699,6 +697,15 @@ def load_dataset(
                         f"{table.source}: {what.replace('_', ' ')} {list(getattr(table, what))} differ from "
                         f"{list(getattr(tables[0], what))} of {tables[0].source}; name them with inputs= and tip="
                     )
+        resting = [table.source for table in tables if not _excited(table)]
+        tables = [table for table in tables if _excited(table)]
+        splits = _file_splits(len(tables), fractions, seed)
+        for name, chosen in zip(("train", "validation", "test"), splits):
+            if len(chosen) == 0:
+                raise ValueError(
+                    f"{len(tables)} recordings with moving inputs split by {tuple(fractions)} leave the {name} "
+                    "split empty; record more runs or pass other fractions (e.g. (1/3, 1/3) for three)"
+                )
         period = float(np.median([table.command_period for table in tables])) if dt is None else dt
         owners, runs = range(len(tables)), tables
         if split_at_gaps:
@@ -759,6 +766,8 @@ def load_dataset(
             delays=np.array([run.delay for run in runs] if delay is None else [], float),
             input_columns=np.array(tables[0].input_columns),
             tip_columns=np.array(tables[0].tip_columns),
+            **{f"{name}_files": _names([tables[i].source for i in chosen]) for name, chosen in zip(SPLITS, splits)},
+            resting_files=_names(resting),
         )
 
     if data_dir is None:
@@ -769,6 +778,12 @@ def load_dataset(
             data_dir, "recordings", spec, compute, valid=lambda cached: _dataset(cached, path.stem) is not None
         )
         data = _dataset(arrays, path.stem)
+    for source in data.resting_files:
+        warnings.warn(
+            f"{source}: every input is constant (a rest run: the measurement noise); it trains nothing and is left "
+            "out of the splits",
+            stacklevel=2,
+        )
     estimates = np.array([seconds for seconds in data.delays if math.isfinite(seconds)])
     if len(estimates) > 1 and np.subtract(*np.percentile(estimates, [75, 25])) > DELAY_SPREAD * data.dt:
         warnings.warn(
@@ -780,6 +795,35 @@ def load_dataset(
             stacklevel=2,
         )
     return data
+
+
+SPLITS = ("train", "val", "test")
+
+
+def _excited(table: _Table) -> bool:
+    """Whether any input takes more than one value: a run that moves the rig, not a rest run."""
+    sent = table.inputs[~np.isnan(table.inputs).any(-1)]
+    return bool(len(sent)) and bool((sent != sent[0]).any())
+
+
+def _file_splits(n: int, fractions, seed: int):
+    """File indices of the train, validation and test splits, shuffled by ``seed``: by
+    ``fractions`` (``split_episodes``), or for None one file in ten validating and one in ten
+    testing, at least one each."""
+    if fractions is not None:
+        return split_episodes(n, seed, fractions)
+    order, held = np.random.default_rng(seed).permutation(n), max(1, round(0.1 * n))
+    if n < 3:
+        raise ValueError(
+            f"{n} recordings with moving inputs cannot be split into training, validation and test runs; "
+            "record at least three"
+        )
+    return np.sort(order[: n - 2 * held]), np.sort(order[n - 2 * held : n - held]), np.sort(order[n - held :])
+
+
+def _names(sources: list[str]) -> np.ndarray:
+    """File names as a string array (an empty list too), as the cache keeps them."""
+    return np.array([Path(source).name for source in sources], dtype=str)
 
 
 class DelayWarning(UserWarning):
@@ -799,6 +843,8 @@ def _dataset(arrays: dict, key: str) -> Dataset | None:
             delays=tuple(float(seconds) for seconds in arrays["delays"]),
             input_columns=tuple(str(name) for name in arrays["input_columns"]),
             tip_columns=tuple(str(name) for name in arrays["tip_columns"]),
+            split_files={name: tuple(str(f) for f in arrays[f"{name}_files"]) for name in SPLITS},
+            resting_files=tuple(str(f) for f in arrays["resting_files"]),
         )
     except (KeyError, TypeError, ValueError):
         return None
