@@ -131,15 +131,16 @@ def test_the_noise_at_rest_is_a_few_micrometres():
 def test_long_gaps_are_refused_with_all_disks_and_the_runs_cut_there_on_request():
     """random_2 loses disk 2 for 0.33 s at 101.97 s, circles disk 1 for 0.29 and 0.50 s in its first
     second: cut there, 10-s episodes come from the stretches 0-101.97 s and 102.30-150 s of random_2
-    and 0.97-150 s of circles (0.29-0.47 s is shorter than an episode), each 22 pairs shorter."""
+    and 0.97-150 s of circles (0.29-0.47 s is shorter than an episode), each 22 pairs shorter; payload_100g
+    has no long gap."""
     path = CURATED / "random_2.csv.gz"
     levels = dict(noise=1e-5, jerk=100.0)  # fixed: seconds instead of a minute; the gaps do not depend on them
     with pytest.raises(ValueError, match=r"rows 10197-10230, column 'x2_m': 0\.330 s between frames .*count as lost"):
         recordings.read(path, tip=DISKS, delay=0.0, **levels)
-    files = [path, CURATED / "circles.csv.gz", CURATED / "rest.csv.gz"]
+    files = [path, CURATED / "circles.csv.gz", CURATED / "payload_100g.csv.gz"]
     options = dict(tip=DISKS, delay=0.22, episode_seconds=10.0, fractions=(1 / 3, 1 / 3), data_dir=None, **levels)
     data = recordings.load_dataset(files, split_at_gaps=True, **options)
-    pairs = [10197 - 22, 4770 - 22, 14903 - 22, 3000 - 22]  # random_2, random_2, circles, rest
+    pairs = [10197 - 22, 4770 - 22, 14903 - 22, 15000 - 22]  # random_2, random_2, circles, payload_100g
     assert data.delay_steps == 22 and len(data.u) == sum(-(-n // 1000) for n in pairs)
 
 
