@@ -76,6 +76,7 @@ CI_CELLS = {  # study: the fields that pick one of its cheapest ci cells (shippe
     "one_step": dict(model="rf-1"),
     "protocol": dict(model="rf", condition="speed-0.5"),
     "table1": dict(model="mlp", seed=0),
+    "trunk_v2": dict(model="delay 2"),  # a referee cell: no training
     "twin_burst": dict(mode="closed"),
     "two_segment": dict(model="rf"),
 }

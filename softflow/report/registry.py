@@ -15,7 +15,7 @@ from softflow.profiles import Profile
 from softflow.report import study_tables
 from softflow.report.tables import read_sweep
 from softflow.store import write_text
-from softflow.studies import one_step, trunk
+from softflow.studies import one_step, trunk, trunk_v2
 
 
 @dataclass(frozen=True)
@@ -33,6 +33,12 @@ class StudyTable:
 # study: (its summarise, the prefix of its files, the parts each is a file of, whether they hold the index)
 SUMMARIES = {
     "trunk": (trunk.summarise, "14_", ("judged", "judge_check", "flow_rule", "per_step", "spread"), True),
+    "trunk_v2": (
+        trunk_v2.summarise,
+        "14_v2_",
+        ("judge_free", "per_input", "spread", "provenance", "floors", "resolution", "judged", "flow_rule"),
+        True,
+    ),
     "one_step": (one_step.summarise, "15_one_step_", ("rmse", "parity", "tip_win", "collapse"), False),
 }
 

@@ -39,7 +39,13 @@ recorded: models trained on nothing but recorded runs of the twin of the hardwar
 trunk: a real robot, fixed before any row ran: the ASL trunk's recorded runs (datasets/asl_trunk/),
     MLP, LSTM, Transformer, RF and RF-FWD trained on one run with the tip alone or all three disks
     observed, 3 seeds at 5 000 steps, scored per step and through a forward judge on two held-out
-    runs beside the recorded inputs, the training mean and persistence.
+    runs beside the recorded inputs, the training mean and persistence. Its answer is withdrawn
+    (its judge saw what it scored): trunk_v2 asks again.
+trunk_v2: the trunk asked again, fixed before any row ran: MLP, LSTM, Transformer, RF, RF-FWD,
+    RF-1 and RF-FWD-1 trained on every excited run not held out (random_1 and its two payload
+    replays), tip alone or every disk, 3 seeds at 5 000 steps; judge-free scores first, then two
+    judges of the tip (ridge, kernel) each fitted on runs other than the one it scores, whose floors
+    and resolution curves are rows of the study computed before any planner's.
 one_step: the one-step flows (RF-1, RF-FWD-1) at 1 and 2 steps beside their parents at 4 and 1
     Euler steps and the MLP, fixed before any row ran: 3 seeds at 20 000 steps on the paper rod
     (Table I's references) and the two-segment rod seen at its tip (its shapes and random
@@ -60,6 +66,7 @@ from softflow.studies import (
     smoke,
     table1,
     trunk,
+    trunk_v2,
     twin_burst,
     two_segment,
 )
@@ -80,5 +87,6 @@ STUDIES = {
     "two_segment": Study(two_segment.cells, two_segment.run, two_segment.models, notebook="12_two_segment.ipynb"),
     "recorded": Study(recorded.cells, recorded.run, recorded.models, notebook="13_recorded_runs.ipynb"),
     "trunk": Study(trunk.cells, trunk.run, trunk.models, notebook="14_real_robot.ipynb"),
+    "trunk_v2": Study(trunk_v2.cells, trunk_v2.run, trunk_v2.models, notebook="14_real_robot.ipynb"),
     "one_step": Study(one_step.cells, one_step.run, one_step.models, notebook="15_one_step.ipynb"),
 }

@@ -113,16 +113,17 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
     carries the cell's per-step scores on that run."""
     grid = TRUNK_GRID[profile_name]
     delay = study_delay(profile_name, workdir)
-    runs = {name: paired_run(name, cell["observation"], delay, profile_name, workdir) for name in HELD_OUT}
+    seconds = grid.seconds
+    runs = {name: paired_run(name, cell["observation"], delay, seconds, workdir) for name in HELD_OUT}
     judge = judge_model(profile_name, delay, device, workdir)
-    full = {name: paired_run(name, "disks", delay, profile_name, workdir) for name in HELD_OUT}
+    full = {name: paired_run(name, "disks", delay, seconds, workdir) for name in HELD_OUT}
     if cell["model"] in NAIVE:
-        training_mean = paired_run(TRAINING_RUN, "disks", delay, profile_name, workdir)[0].mean(0)  # (6,)
+        training_mean = paired_run(TRAINING_RUN, "disks", delay, seconds, workdir)[0].mean(0)  # (6,)
         plans = {name: naive_plan(cell["model"], u, training_mean) for name, (u, _) in runs.items()}
         per_step = {name: dict(u_rmse_deg=_rms(plans[name] - runs[name][0])) for name in HELD_OUT}
         measured = {}
     else:
-        dataset = training_set(cell["observation"], delay, profile_name, workdir)
+        dataset = training_set(cell["observation"], delay, TRUNK_GRID[profile_name].seconds, workdir)
         model, checkpoint = training.ensure_trained(
             cell["model"],
             grid.budget(profile_name),
@@ -240,10 +241,9 @@ def study_delay(profile_name: str, workdir: Path) -> int:
     return int(cached_arrays(workdir, "trunk-delay", spec, compute)["delay_steps"])
 
 
-def paired_run(name: str, observation: str, delay: int, profile_name: str, workdir: Path):
+def paired_run(name: str, observation: str, delay: int, seconds: float | None, workdir: Path):
     """Inputs (T, 6) and states (T+1, 2k) of one run, step t paired with the input sent ``delay``
-    periods before it (the profile's first ``seconds`` of it only; cached)."""
-    seconds = TRUNK_GRID[profile_name].seconds
+    periods before it (its first ``seconds`` only, None: all of it; cached)."""
 
     def compute():
         run = recordings.read(
@@ -262,7 +262,8 @@ def paired_run(name: str, observation: str, delay: int, profile_name: str, workd
     return arrays["u"], arrays["states"]
 
 
-def _episodes(u: np.ndarray, states: np.ndarray, n_steps: int):
+def episodes(u: np.ndarray, states: np.ndarray, n_steps: int = EPISODE_STEPS):
+    """A run's (T, m) inputs and (T+1, d) states cut into episodes of ``n_steps``: (E, n, m), (E, n+1, d)."""
     cuts = recordings.episodes([len(u)], n_steps)
     return np.stack([u[s : s + n_steps] for _, s in cuts]), np.stack([states[s : s + n_steps + 1] for _, s in cuts])
 
@@ -270,7 +271,9 @@ def _episodes(u: np.ndarray, states: np.ndarray, n_steps: int):
 def training_set(observation: str, delay: int, profile_name: str, workdir: Path) -> data.Dataset:
     """The training run cut into 2-s episodes, the last VALIDATION of them validating; the held-out
     random run's episodes as its test split (for the per-step scores of the training loop only)."""
-    u, states = _episodes(*paired_run(TRAINING_RUN, observation, delay, profile_name, workdir), EPISODE_STEPS)
+    u, states = episodes(
+        *paired_run(TRAINING_RUN, observation, delay, TRUNK_GRID[profile_name].seconds, workdir), EPISODE_STEPS
+    )
     n_val = max(1, round(VALIDATION * len(u)))
     key = f"trunk-{observation}-{profile_name}-d{delay}-r{recordings.LOADER_REVISION}"
     return data.Dataset(
@@ -293,7 +296,7 @@ def judge_model(profile_name: str, delay: int, device: str, workdir: Path):
     """The forward judge: the forward surrogate on all disks, trained on every run (held-out ones
     included; the inverse models never see them), the last 15 % of each run's episodes validating."""
     pieces = [
-        _episodes(*paired_run(name, "disks", delay, profile_name, workdir), EPISODE_STEPS)
+        episodes(*paired_run(name, "disks", delay, TRUNK_GRID[profile_name].seconds, workdir), EPISODE_STEPS)
         for name in (TRAINING_RUN, *HELD_OUT)
     ]
     u, states = (np.concatenate(parts) for parts in zip(*pieces))
