@@ -61,6 +61,35 @@ def test_a_difference_ranks_only_where_every_judge_agrees_beyond_its_resolution(
     assert trunk_v2._verdict(comparison(**changes)) == verdict
 
 
+def test_a_judge_that_rates_a_known_worse_input_better_than_the_recorded_ones_judges_nothing_there():
+    def perturbation(judge, family, name, difference):
+        return dict(
+            judge=judge,
+            family=family,
+            input=name,
+            difference=difference,
+            low=difference - 0.1,
+            high=difference + 0.1,
+            t_low=difference - 0.1,
+            t_high=difference + 0.1,
+            separated=difference > 0.1,
+        )
+
+    curve = pd.DataFrame(
+        [
+            perturbation(judge, "a", name, d)
+            for judge in ("ridge", "kernel")
+            for name, d in (("delay 1", 0.5), ("noise 1", 2.0))
+        ]
+        + [perturbation("ridge", "b", "delay 1", -1.0), perturbation("ridge", "b", "noise 1", 2.0)]
+        + [perturbation("kernel", "b", "delay 1", 0.05), perturbation("kernel", "b", "noise 1", 0.0)]
+    )
+    table = trunk_v2.resolutions(curve).set_index(["judge", "family"])
+    assert table.loc[("ridge", "a"), "resolution_mm"] == 0.5 and table.loc[("ridge", "a"), "trusted"]
+    assert table.loc[("ridge", "b"), "reversed"] == 1 and not table.loc[("ridge", "b"), "trusted"]
+    assert np.isnan(table.loc[("kernel", "b"), "resolution_mm"]) and not table.loc[("kernel", "b"), "trusted"]
+
+
 def test_the_answer_reads_the_verdicts_of_each_observation():
     def rule(tip, disks):
         return pd.DataFrame(
@@ -73,6 +102,7 @@ def test_the_answer_reads_the_verdicts_of_each_observation():
     assert trunk_v2.notebook_12_answer(rule("RF lower", "RF lower")) == "both"
     assert trunk_v2.notebook_12_answer(rule("MLP lower", unresolved)) == "neither"
     assert trunk_v2.notebook_12_answer(rule(unresolved, unresolved)) == "not resolved"
+    assert trunk_v2.notebook_12_answer(rule(trunk_v2.UNJUDGED, trunk_v2.UNJUDGED)) == "not resolved"
 
 
 @pytest.mark.parametrize("profile", ["ci", "paper"])

@@ -25,11 +25,18 @@ Fixed before any row (docs/assumptions.md, "The trunk study, asked again"):
   baseline, best by the judge-free per-step error on that run. A difference is ranked only where,
   for every judge, the bootstrap interval (seeds and windows) and the paired t-interval (windows)
   exclude zero on the same side, its Holm-adjusted p is below 0.05 (one Holm family per judge: its
-  8 comparisons), and its size exceeds the larger of the judges' resolutions on that run and
+  comparisons on the judged families, below), and its size exceeds the larger of the judges' resolutions on that run and
   window; otherwise "not resolved by the judges". A planner either judge scores below the recorded
-  inputs' floor is flagged. The answer (``notebook_12_answer``): "confirms" notebook 12 (a flow
-  lower on some family from the tip alone, on none with every disk), "reverses", "both", "neither"
-  (families resolved, no flow lower) or "not resolved" (no family resolved).
+  inputs' floor is flagged.
+- Added once the referee rows existed, before any planner row: a family (run and window) is judged
+  only where every judge separates some perturbation from zero and rates none of them below the
+  recorded inputs (``resolutions``' ``trusted``); the Holm family of each judge is its comparisons
+  on the judged families. Why: on ``circles`` the ridge judge rates the recorded inputs delayed by
+  1-10 periods better than the recorded ones (the kernel judge, delayed by 1 over 1-s windows), so
+  there a judge would reward a planner's lag.
+- The answer (``notebook_12_answer``): "confirms" notebook 12 (a flow lower on some family from the
+  tip alone, on none with every disk), "reverses", "both", "neither" (families resolved, no flow
+  lower) or "not resolved" (no family resolved).
 """
 
 from __future__ import annotations
@@ -335,10 +342,14 @@ def resolution(rows: pd.DataFrame) -> pd.DataFrame:
 
 def resolutions(curve: pd.DataFrame) -> pd.DataFrame:
     """Per judge and family: the smallest judged change among the perturbations it separates
-    from zero (mm; NaN: it separates none, and nothing ranks on that family)."""
+    from zero (mm; NaN: it separates none), how many known-worse inputs it rates better than the
+    recorded ones (both intervals below zero: ``reversed``), and whether it may judge there
+    (``trusted``: it separates some and reverses none)."""
     perturbed = curve[curve.input.isin(judges.perturbations())]
     smallest = perturbed[perturbed.separated].groupby(["judge", "family"]).difference.min()
     table = perturbed.groupby(["judge", "family"], sort=False).size().rename("perturbations").to_frame()
+    below = (perturbed.high < 0) & (perturbed.t_high < 0)
+    table["reversed"] = below.groupby([perturbed.judge, perturbed.family]).sum().reindex(table.index)
     table["resolution_mm"] = smallest.reindex(table.index)
     table["smallest_separated"] = (
         perturbed[perturbed.separated]
@@ -347,6 +358,7 @@ def resolutions(curve: pd.DataFrame) -> pd.DataFrame:
         .input.first()
         .reindex(table.index)
     )
+    table["trusted"] = table.resolution_mm.notna() & (table.reversed == 0)
     return table.reset_index()
 
 
@@ -399,7 +411,8 @@ def flow_rule(rows: pd.DataFrame) -> pd.DataFrame:
     curve = resolution(rows)
     if curve.empty:
         return pd.DataFrame()
-    limit = resolutions(curve).groupby("family").resolution_mm.agg(lambda r: r.max() if r.notna().all() else np.nan)
+    referee = resolutions(curve).groupby("family")
+    limit = referee.resolution_mm.max().where(referee.trusted.all())  # NaN where a judge may not judge
     out = []
     planners = rows[~rows.model.isin(REFEREE)]
     for (observation, family), part in planners.groupby(["observation", "family"], sort=False):
@@ -415,10 +428,15 @@ def flow_rule(rows: pd.DataFrame) -> pd.DataFrame:
     table = pd.DataFrame(out)
     if table.empty:
         return table
-    for kind in judges.KINDS:
-        table[f"{kind}_holm_p"] = stats.holm(table[f"{kind}_p"].to_numpy())
-    table["verdict"] = [_verdict(row) for _, row in table.iterrows()]
+    judged = table.resolution_mm.notna()
+    for kind in judges.KINDS:  # one Holm family per judge: its comparisons on the families it may judge
+        table[f"{kind}_holm_p"] = np.nan
+        table.loc[judged, f"{kind}_holm_p"] = stats.holm(table.loc[judged, f"{kind}_p"].to_numpy())
+    table["verdict"] = [_verdict(row) if trusted else UNJUDGED for trusted, (_, row) in zip(judged, table.iterrows())]
     return table
+
+
+UNJUDGED = "not judged (a judge separates no perturbation here, or rates a known-worse input below the recorded)"
 
 
 def _verdict(row: pd.Series) -> str:
@@ -452,7 +470,7 @@ def notebook_12_answer(rule: pd.DataFrame) -> str:
     if rule.empty:
         return "not resolved"
     flow_lower = rule.apply(lambda r: r.verdict == f"{label(r.best_flow)} lower", axis=1)
-    resolved = rule.verdict != "not resolved by the judges"
+    resolved = rule.verdict.str.endswith(" lower")
     tip, disks = (bool(flow_lower[rule.observation == o].any()) for o in ("tip", "disks"))
     if not resolved.any():
         return "not resolved"
