@@ -40,7 +40,7 @@ from softflow.report.tables import (
     read_result,
     read_sweep,
 )
-from softflow.studies import one_step, stats, trunk
+from softflow.studies import one_step, stats, trunk, trunk_v2
 from softflow.studies.recorded import RECORDED
 from softflow.studies.recorded import cells as recorded_cells
 from softflow.studies.study import FLOOR
@@ -655,6 +655,9 @@ def trunk_section(profile: Profile) -> list[str]:
         trunk_summary(tables, rows["key"].nunique(), cells),
         "",
         *([markdown(rule.set_index(["observation", "family"])), ""] if len(rule) else []),
+        "Asked again with two judges that never saw the run they score, validated before any planner row "
+        f"(`trunk_v2`, notebook 14): {trunk_v2.answer(computed_rows(profile, 'trunk_v2'), profile.name)}",
+        "",
     ]
 
 

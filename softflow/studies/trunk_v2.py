@@ -34,6 +34,7 @@ Fixed before any row (docs/assumptions.md, "The trunk study, asked again"):
   on the judged families. Why: on ``circles`` the ridge judge rates the recorded inputs delayed by
   1-10 periods better than the recorded ones (the kernel judge, delayed by 1 over 1-s windows), so
   there a judge would reward a planner's lag.
+- Committed: the grid, scores and rule at 7f7d88d, the referee's rows and this gate at 1082574.
 - The answer (``notebook_12_answer``): "confirms" notebook 12 (a flow lower on some family from the
   tip alone, on none with every disk), "reverses", "both", "neither" (families resolved, no flow
   lower) or "not resolved" (no family resolved).
@@ -475,6 +476,22 @@ def notebook_12_answer(rule: pd.DataFrame) -> str:
     if not resolved.any():
         return "not resolved"
     return {(True, False): "confirms", (False, True): "reverses", (True, True): "both"}.get((tip, disks), "neither")
+
+
+def answer_sentence(rule: pd.DataFrame, computed: int, cells: int) -> str:
+    """The answer in words with its rule, once every cell has rows; before, how far the study is."""
+    if computed < cells:
+        return f"{computed} of the study's {cells} cells have rows: no answer until every cell has."
+    return (
+        "By the rule fixed before any planner row (every judge agrees, both intervals, Holm within each judge, "
+        f"beyond both judges' resolution, on the families both may judge), {ANSWERS[notebook_12_answer(rule)]}."
+    )
+
+
+def answer(rows: pd.DataFrame, profile_name: str) -> str:
+    """``answer_sentence`` from the rows computed so far of the profile's grid: the README's and the page's."""
+    rule = flow_rule(rows) if len(rows) else pd.DataFrame()
+    return answer_sentence(rule, rows["key"].nunique() if len(rows) else 0, len(cells(profile_name)))
 
 
 def summarise(rows: pd.DataFrame) -> dict[str, pd.DataFrame]:
