@@ -4,6 +4,7 @@
   softflow train --profile paper mlp rf-fwd            train models; the last lines are their checkpoints
   softflow train --robot hw --gravity horizontal rf-fwd   a hardware-twin model
   softflow train --ship rf-fwd                         retrain a shipped model into checkpoints/ (maintainers)
+  softflow check my_runs/                              what the loader finds in each recording, and its split
   softflow train mlp --recordings my_runs/ --profile ci   a model of recorded runs (docs/recordings.md)
   softflow sweep table1 --profile paper                a study's cells as Dask tasks (docs/sweeps.md)
   softflow models [--cards]                            the shipped checkpoints (and their model cards)
@@ -120,6 +121,16 @@ def build_parser() -> argparse.ArgumentParser:
         "--recordings", type=Path, metavar="DIR", help="the folder of recordings (.csv, .csv.gz, .parquet)"
     )
     _recording_options(recorded)
+
+    sub = verb(
+        "check",
+        _check,
+        "what the loader finds in each recording before training: rates, lost frames, long gaps, delay, units, split",
+        recordings.describe.__doc__,
+    )
+    sub.add_argument("recordings", type=Path, metavar="DIR", help="the folder of recordings (.csv, .csv.gz, .parquet)")
+    _recording_options(sub)
+    sub.add_argument("--no-delay", action="store_true", help="skip the delay estimates (they smooth every run)")
 
     sub = verb("sweep", _sweep, "run a study's cells as Dask tasks; the result CSV is the last line", sweep.__doc__)
     sub.add_argument("study", choices=sorted(sweep.STUDIES))
@@ -247,9 +258,15 @@ def _recording_options(group):
         "default: one recording in ten validates and one tests, at least one each)",
     )
     group.add_argument(
+        "--max-gap",
+        type=_positive("seconds"),
+        metavar="S",
+        help=f"the longest run of lost frames the smoother bridges (default {recordings.MAX_GAP:g} s)",
+    )
+    group.add_argument(
         "--split-at-gaps",
         action="store_true",
-        help="cut a recording at a gap of lost frames longer than 0.2 s instead of refusing it",
+        help="cut a recording at a longer run of lost frames than --max-gap instead of refusing it",
     )
 
 
@@ -372,7 +389,8 @@ def _train(args):
 
 def _recording_flags(args) -> list[str]:
     """The options of ``_recording_options`` given on the command line."""
-    given = [f"--{option}" for option in ("inputs", "tip", "dt", "delay") if getattr(args, option) is not None]
+    options = ("inputs", "tip", "dt", "delay", "max_gap")
+    given = [f"--{option.replace('_', '-')}" for option in options if getattr(args, option) is not None]
     return given + ["--split-at-gaps"] * args.split_at_gaps + ["--fractions"] * (args.fractions is not None)
 
 
@@ -385,8 +403,28 @@ def _recordings(args):
         dt=args.dt,
         delay=args.delay,
         fractions=args.fractions,
+        max_gap=recordings.MAX_GAP if args.max_gap is None else args.max_gap,
         split_at_gaps=args.split_at_gaps,
     )
+
+
+def _check(args):
+    """One line per recording: what ``recordings.describe`` finds. Exit 1 where a file would be refused."""
+    given = [flag for flag, value in (("--dt", args.dt), ("--delay", args.delay)) if value is not None]
+    if given or args.split_at_gaps:
+        raise ValueError(f"check reads every file as it is; {', '.join(given) or '--split-at-gaps'} changes no report")
+    report = recordings.describe(
+        args.recordings,
+        inputs=args.inputs,
+        tip=args.tip,
+        max_gap=recordings.MAX_GAP if args.max_gap is None else args.max_gap,
+        fractions=args.fractions,
+        delays=not args.no_delay,
+    )
+    with pd.option_context("display.max_colwidth", 80, "display.width", 200):
+        print(report.dropna(axis=1, how="all").to_string(index=False, na_rep="", float_format="{:.1f}".format))
+    if report.problem.notna().any():
+        raise SystemExit(1)
 
 
 def _sweep(args):
@@ -472,7 +510,8 @@ def _planned_shape(args):
 def _plan(args):
     if args.recordings is not None or args.reference is not None:
         return _plan_recorded(args)
-    given = [f"--{option}" for option in ("inputs", "tip", "dt", "delay") if getattr(args, option) is not None]
+    options = ("inputs", "tip", "dt", "delay", "max_gap")
+    given = [f"--{option.replace('_', '-')}" for option in options if getattr(args, option) is not None]
     if given:
         raise ValueError(f"{', '.join(given)} describe recordings; they need --recordings DIR --reference PATH.csv")
     sim, reference, u = _planned_shape(args)

@@ -17,7 +17,7 @@ from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import HW_ROBOT, SIM_ROBOT
 from softflow.store import REPO
 
-VERBS = ["data", "train", "sweep", "models", "plan", "evaluate", "export"]
+VERBS = ["data", "check", "train", "sweep", "models", "plan", "evaluate", "export"]
 
 
 def run(capsys, *argv) -> list[str]:

@@ -546,3 +546,45 @@ def test_a_dataset_delay_is_a_whole_number_of_periods(folder):
     for bad in (-1, 1.5, True):
         with pytest.raises(ValueError, match="delay_steps must be a whole number of periods >= 0"):
             Dataset(data.u, data.states, data.train, data.val, data.test, robot=None, gravity=None, delay_steps=bad)
+
+
+# ---------------------------------------------------------------------------- what a folder holds
+def test_describe_reports_every_file_with_its_lost_frames_gaps_units_and_split_and_a_bad_file_as_a_row(tmp_path):
+    """Four moving runs, one with 3 frames held and a 0.3-s gap, one with a millimetre column, a
+    rest run and a broken file: one row each, the split load_dataset would make, nothing raised."""
+    rng = np.random.default_rng(9)
+    for i in range(4):
+        point_mass_run(tmp_path / f"run{i}.csv", rng, 2, 2, 2.0)
+    spoilt = pd.read_csv(tmp_path / "run1.csv")
+    frames = np.flatnonzero(spoilt.x_m.notna().to_numpy())
+    spoilt.loc[frames[10:13], ["x_m", "y_m"]] = spoilt.loc[frames[9], ["x_m", "y_m"]].to_numpy()  # held 3 frames
+    gap = frames[(spoilt.time_s[frames] > 1.0) & (spoilt.time_s[frames] < 1.3)]
+    spoilt.loc[gap, ["x_m", "y_m"]] = np.nan  # 0.3 s without a frame
+    spoilt.to_csv(tmp_path / "run1.csv", index=False)
+    millimetres = pd.read_csv(tmp_path / "run2.csv")
+    millimetres["z_mm"] = 1e3 * millimetres.x_m
+    millimetres.to_csv(tmp_path / "run2.csv", index=False)
+    rest = pd.read_csv(tmp_path / "run0.csv")
+    rest[["u1", "u2"]] = rest[["u1", "u2"]].where(rest[["u1", "u2"]].isna(), 0.0)
+    rest.to_csv(tmp_path / "rest.csv", index=False)
+    (tmp_path / "broken.csv").write_text("time_s,u1\n0,1\n")
+
+    report = recordings.describe(tmp_path, progress=False).set_index("file")
+    assert list(report.index) == ["broken.csv", "rest.csv", *(f"run{i}.csv" for i in range(4))]
+    assert report.loc["broken.csv", "split"] == "refused" and "tip columns" in report.loc["broken.csv", "problem"]
+    assert report.loc["run1.csv", "held"] == "3" and report.loc["run0.csv", "held"] == "0"
+    assert (
+        report.loc["run1.csv", "long_gaps"].startswith("tip: 0.9")
+        and "read refuses" in report.loc["run1.csv", "problem"]
+    )
+    assert report.loc["run2.csv", "other_units"] == "z_mm (millimetres?)"
+    assert report.loc["rest.csv", "split"] == "none (rest run)"
+    assert sorted(report.loc[[f"run{i}.csv" for i in range(4)], "split"]) == ["test", "train", "train", "val"]
+    assert report.loc["run0.csv", "command_hz"] == pytest.approx(100) and report.loc["run0.csv", "frame_hz"] > 25
+    assert np.isfinite(report.loc["run0.csv", "delay_ms"]) and np.isnan(report.loc["run1.csv", "delay_ms"])
+    readable = [tmp_path / name for name in ("rest.csv", "run0.csv", "run2.csv", "run3.csv", "run4.csv")]
+    point_mass_run(readable[-1], rng, 2, 2, 2.0)
+    said = recordings.describe(readable, delays=False, progress=False).set_index("file").split
+    with pytest.warns(UserWarning, match="rest run"):
+        made = recordings.load_dataset(readable, delay=0.0, data_dir=None).split_files
+    assert {name: split for split, files in made.items() for name in files} == said.drop("rest.csv").to_dict()

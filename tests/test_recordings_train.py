@@ -143,3 +143,17 @@ def test_inputs_of_one_sign_are_clipped_per_input_to_the_range_seen(trained):
     with pytest.warns(control.SaturationWarning, match="stepped u values exceed the input ranges"):
         stepped = box.step(run.states[:-1], run.states[1:])  # (T, m)
     assert ((stepped >= low) & (stepped <= high)).all()
+
+
+def test_check_prints_a_line_per_recording_and_fails_where_one_would_be_refused(tmp_path, capsys):
+    rng = np.random.default_rng(3)
+    for i in range(3):
+        point_mass_run(tmp_path / f"run{i}.csv", rng, 2, 2, 2.0)
+    cli.main(["check", str(tmp_path), "--no-delay"])
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].split()[:3] == ["file", "rows", "seconds"] and len(lines) == 4
+    assert sorted(line.split()[-1] for line in lines[1:]) == ["test", "train", "val"]
+    (tmp_path / "broken.csv").write_text("time_s,u1\n0,1\n")
+    with pytest.raises(SystemExit) as stop:
+        cli.main(["check", str(tmp_path), "--no-delay"])
+    assert stop.value.code == 1 and "broken.csv" in capsys.readouterr().out

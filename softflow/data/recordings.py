@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from tqdm import tqdm
 
 from softflow.data.dataset import Dataset, split_episodes
 from softflow.data.smoothing import check_levels, smooth
@@ -798,6 +799,103 @@ def load_dataset(
 
 
 SPLITS = ("train", "val", "test")
+SUSPECT_UNITS = {"_mm": "millimetres", "_cm": "centimetres", "_in": "inches"}  # column suffixes the loader never reads
+
+
+def describe(
+    paths_or_folder,
+    *,
+    inputs=None,
+    tip=None,
+    max_gap: float = MAX_GAP,
+    dropouts: bool = True,
+    fractions=None,
+    seed: int = 0,
+    delays: bool = True,
+    progress: bool = True,
+) -> pd.DataFrame:
+    """What the loader finds in each recording before anything trains on it, one row per file:
+    rows and seconds, the commands' and the frames' rates (Hz), the frames lost per point
+    (``tip_points``: held and one-frame jumps, ``lost_frames``), runs of lost frames longer than
+    ``max_gap`` (which ``read`` refuses), the estimated input-to-motion delay (ms; ``delays=False``
+    skips it: it smooths the run), columns in units the loader does not read, the split
+    ``load_dataset`` puts it in with the same ``fractions`` and ``seed`` (a rest run in none), and
+    why a file would be refused. A bad file is a row saying so, not an error: the report covers
+    every file."""
+    _check_options(None, max_gap, None, None)
+    files = recording_files(paths_or_folder)
+    rows, excited = [], []
+    for path in tqdm(files, desc="recordings", unit="file", disable=not progress):
+        row = dict(file=path.name)
+        try:
+            content = path.read_bytes()
+            columns = [str(name) for name in _frame(str(path), content).columns]
+            row["other_units"] = _other_units(columns, inputs or ())
+            table = _table(str(path), content, inputs, tip, dropouts)
+            row["other_units"] = _other_units(columns, table.input_columns)
+        except (OSError, ValueError) as error:
+            rows.append(row | dict(split="refused", problem=str(error)))
+            continue
+        points = tip_points(table.tip_columns)
+        frames = table.times[np.isfinite(table.tip[:, 0])]
+        point_of = {i: _point_name(table.tip_columns, point) for point in points for i in point}
+        gaps = list(  # per point, not per column: a point's columns are lost together
+            dict.fromkeys(
+                f"{point_of[i]}: {table.times[before]:.2f}-{table.times[after]:.2f} s"
+                for i, before, after in _long_gaps(table, max_gap)
+            )
+        )
+        row |= dict(
+            rows=len(table.times),
+            seconds=float(table.times[-1] - table.times[0]),
+            command_hz=1 / table.command_period,
+            frame_hz=1 / float(np.median(np.diff(frames))) if len(frames) > 1 else np.nan,
+            points=", ".join(_point_name(table.tip_columns, point) for point in points),
+            held=", ".join(str(int(table.frozen[point[0]])) for point in points),
+            jumps=", ".join(str(int(table.jumps[point[0]])) for point in points),
+            long_gaps="; ".join(gaps),
+        )
+        if gaps:
+            row["problem"] = f"lost frames for longer than {max_gap:g} s: read refuses it (split it at gaps)"
+        elif delays:
+            run = _resample(table, table.command_period, max_gap, None, None)
+            row["delay_ms"] = 1e3 * estimate_delay(run)
+        if _excited(table):
+            excited.append(len(rows))
+        else:
+            row["split"] = "none (rest run)"
+        rows.append(row)
+    try:
+        splits = _file_splits(len(excited), fractions, seed)
+    except ValueError as error:
+        for i in excited:
+            rows[i]["split"] = f"none ({error})"
+    else:
+        for name, chosen in zip(SPLITS, splits):
+            for i in chosen:
+                rows[excited[i]]["split"] = name
+    order = ["file", "rows", "seconds", "command_hz", "frame_hz", "points", "held", "jumps", "long_gaps", "delay_ms"]
+    table = pd.DataFrame(rows)
+    return table.reindex(columns=[*order, "other_units", "split", "problem"])
+
+
+def _other_units(columns, input_columns) -> str:
+    """Columns other than the inputs (which may be in any units) whose names say a unit the
+    loader does not read positions in: a tip in millimetres beside the metre columns, say."""
+    return ", ".join(
+        f"{name} ({unit}?)"
+        for name in columns
+        if name not in input_columns
+        for suffix, unit in SUSPECT_UNITS.items()
+        if name.endswith(suffix)
+    )
+
+
+def _point_name(tip_columns, point: list[int]) -> str:
+    """A point's name in reports: its columns' shared part (``3`` of x3_m, y3_m, z3_m; ``tip`` of
+    x_m, y_m, z_m), or its column."""
+    axis = re.fullmatch(r"[xyz](.*)_m", tip_columns[point[0]])
+    return (axis.group(1) or "tip") if axis else tip_columns[point[0]]
 
 
 def _excited(table: _Table) -> bool:
