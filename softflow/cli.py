@@ -47,13 +47,14 @@ REFERENCES = {"table1": ("shape", "random"), "shapes": ("shape",), "random": ("r
 
 def main(argv=None):
     """Run one verb. Bad input (a ValueError, which says what was expected) exits 2 with its
-    message, as a bad argument does."""
+    message in the command line's words, as a bad argument does, without the usage block: the
+    arguments parsed, the data or their combination was refused."""
     args = build_parser().parse_args(sys.argv[1:] if argv is None else list(argv))
     shown, warnings.formatwarning = warnings.formatwarning, _warning  # a user reads the message, not our source
     try:
         args.run(args)
     except ValueError as error:
-        args.parser.error(in_flags(str(error)))
+        args.parser.exit(2, f"{args.parser.prog}: error: {in_flags(str(error))}\n")
     finally:
         warnings.formatwarning = shown
 
@@ -70,6 +71,10 @@ FLAGS = {
     "inputs=[...]": "--inputs COLS",
     "pass delay=": "pass --delay",
     "pass other fractions (e.g. (1/3, 1/3) for three)": "pass --fractions (e.g. --fractions 0.34,0.34 for three)",
+    "longer than max_gap = ": "longer than --max-gap ",
+    "load_dataset(..., split_at_gaps=True)": "--split-at-gaps",
+    "(dropouts=False keeps them)": "(in Python, recordings.read(..., dropouts=False) keeps them)",
+    "(or give noise and jerk)": "(record longer runs; in Python, or give noise and jerk)",
 }
 
 

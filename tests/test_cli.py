@@ -56,6 +56,10 @@ def test_global_help_lists_every_verb(capsys):
     assert all(f"\n    {verb} " in out for verb in VERBS)
 
 
+# argparse's own refusals come with the usage block; the verbs' checks after parsing without it
+PARSE_ERRORS = ("required", "invalid choice", "argument ", "expected a positive", "unrecognized")
+
+
 @pytest.mark.parametrize(
     "argv, message",
     [
@@ -78,14 +82,27 @@ def test_global_help_lists_every_verb(capsys):
         (["train", "--profile", "ci", "--ship", "mlp"], "--ship writes the paper profile's checkpoints"),
         (["sweep", "smoke"], "required: --profile"),
         (["models", "--robot", "hw"], "unrecognized arguments"),
-        # bad input found after parsing exits 2 the same way, with the package's message
+        # bad input found after parsing exits 2 the same way, with the package's message and no usage block
         (["plan", "rf", "--robot", "hw", "--shape", "circle", "--out", "u.csv"], "no trained 'rf'"),
     ],
 )
 def test_bad_arguments_exit_2_with_a_message(argv, message, capsys):
     code, err = exit_code(capsys, *argv)
     assert code == 2
-    assert message in err and err.startswith("usage: softflow")
+    parsed = "usage: softflow" if message.startswith(PARSE_ERRORS) else f"softflow {argv[0]}: error: "
+    assert message in err and err.startswith(parsed)
+
+
+def test_a_refused_recording_names_the_flags_that_help(tmp_path, capsys):
+    """The loader's message in the command line's words: --max-gap and --split-at-gaps, not keywords."""
+    frames = np.arange(0, 3, 0.01)
+    table = pd.DataFrame(dict(time_s=frames, u1=np.sin(frames), x_m=np.sin(frames), y_m=np.cos(frames)))
+    table.loc[(frames > 1) & (frames < 1.5), ["x_m", "y_m"]] = np.nan  # half a second without a frame
+    for i in range(3):
+        table.to_csv(tmp_path / f"run{i}.csv", index=False)
+    code, err = exit_code(capsys, "train", "mlp", "--recordings", str(tmp_path), "--profile", "ci")
+    assert code == 2 and err.startswith("softflow train: error: ") and "usage" not in err
+    assert "longer than --max-gap 0.2 s" in err and "or let --split-at-gaps cut it" in err
 
 
 def test_an_output_that_is_a_directory_is_refused(tmp_path, capsys):
