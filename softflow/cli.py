@@ -413,6 +413,31 @@ def _recordings(args):
     )
 
 
+def _recorded_controller(args):
+    """The model of ``--recordings`` read with the verb's options, and their Dataset; or a ValueError
+    that gives the whole train command making it, with the options that are part of its identity."""
+    dataset = _recordings(args)
+    if control.find_trained(args.model, args.profile, recordings=dataset)[0] is None:
+        raise ValueError(
+            f"no trained {args.model!r} of {args.recordings} read with these options, profile {args.profile!r}; "
+            f"train it with: softflow train {args.model} --profile {args.profile} --recordings {args.recordings}"
+            + "".join(f" {flag}" for flag in _recording_values(args))
+        )
+    return control.load_controller(args.model, args.profile, recordings=dataset), dataset
+
+
+def _recording_values(args) -> list[str]:
+    """The options of ``_recording_options`` given, with their values, as they are typed."""
+    typed = dict(inputs=args.inputs, tip=args.tip, fractions=args.fractions)
+    out = []
+    for option in ("inputs", "tip", "dt", "delay", "max_gap", "fractions"):
+        value = getattr(args, option)
+        if value is not None:
+            text = ",".join(map(str, typed[option])) if option in typed else f"{value:g}"
+            out.append(f"--{option.replace('_', '-')} {text}")
+    return out + ["--split-at-gaps"] * args.split_at_gaps
+
+
 def _check(args):
     """One line per recording: what ``recordings.describe`` finds. Exit 1 where a file would be refused."""
     given = [flag for flag, value in (("--dt", args.dt), ("--delay", args.delay)) if value is not None]
@@ -535,8 +560,7 @@ def _plan_recorded(args):
         raise ValueError("--shape and --size plan the simulated rod's shapes; with --recordings give --reference")
     if args.out.is_dir():
         raise ValueError(f"--out {args.out} is a directory; expected a file to write")
-    dataset = _recordings(args)
-    controller = control.load_controller(args.model, args.profile, recordings=dataset)
+    controller, dataset = _recorded_controller(args)
     states = recordings.read_path(args.reference, tip=list(dataset.tip_columns), dt=dataset.dt)  # (T+1, 2k)
     u = controller.plan(states)  # (T, m), advanced by the delay
     frame = pd.DataFrame(u, columns=list(dataset.input_columns))
@@ -572,7 +596,7 @@ def _export_onnx(args):
     if given := [f"--{option}" for option in ("shape", "size", "out") if getattr(args, option) is not None]:
         raise ValueError(f"{', '.join(given)}: options of a command file; --onnx writes the model's step alone")
     if args.recordings is not None:
-        controller = control.load_controller(args.model, args.profile, recordings=_recordings(args))
+        controller, _ = _recorded_controller(args)
         made_for = f"recordings {args.recordings}"
     elif given := _recording_flags(args):
         raise ValueError(f"{', '.join(given)} describe recordings; they need --recordings DIR")

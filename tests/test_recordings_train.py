@@ -94,6 +94,17 @@ def test_a_model_not_trained_on_the_recordings_names_the_command(ci_recordings):
         control.load_controller("lstm", "ci", recordings=runs)
 
 
+def test_the_cli_names_the_whole_train_command_of_a_missing_model_of_recordings(ci_recordings, capsys, tmp_path):
+    """Typed as asked, the command trains exactly the model plan looks for: --tip, --fractions and
+    the other options that make its Dataset are part of it."""
+    runs = ci_recordings[0]
+    argv = ["plan", "lstm", "--recordings", str(runs), "--profile", "ci", "--tip", "x_m,y_m", "--fractions", "0.5,0.25"]
+    with pytest.raises(SystemExit) as stop:
+        cli.main([*argv, "--reference", str(tmp_path / "path.csv"), "--out", str(tmp_path / "u.csv")])
+    expected = f"softflow train lstm --profile ci --recordings {runs} --tip x_m,y_m --fractions 0.5,0.25"
+    assert stop.value.code == 2 and f"train it with: {expected}" in capsys.readouterr().err
+
+
 def test_physical_models_need_a_simulated_rods_statics(trained, tmp_path, monkeypatch):
     runs = trained[0]
     monkeypatch.setitem(PROFILES, "ci", replace(PROFILES["ci"], train=TINY))
