@@ -588,3 +588,10 @@ def test_describe_reports_every_file_with_its_lost_frames_gaps_units_and_split_a
     with pytest.warns(UserWarning, match="rest run"):
         made = recordings.load_dataset(readable, delay=0.0, data_dir=None).split_files
     assert {name: split for split, files in made.items() for name in files} == said.drop("rest.csv").to_dict()
+
+
+def test_a_tip_column_named_in_millimetres_is_read_as_metres_with_a_warning(tmp_path):
+    path = write_sines(tmp_path / "run.csv", np.random.default_rng(4), tip=("x_mm", "y_mm"))
+    with pytest.warns(UserWarning, match=r"column 'x_mm' is read as metres, though its name says millimetres"):
+        run = recordings.read(path, tip=["x_mm", "y_mm"], delay=0.0)
+    assert run.tip_columns == ("x_mm", "y_mm")

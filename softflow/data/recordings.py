@@ -278,8 +278,15 @@ def _check_time_unit(times: np.ndarray, source: str) -> None:
 
 
 def _check_tip_unit(tip: np.ndarray, tip_columns, source: str) -> None:
-    """Refuse a tip column in metres (``_m``) that spans more than WIDEST_SPAN (a log in mm)."""
+    """Refuse a tip column in metres (``_m``) that spans more than WIDEST_SPAN (a log in mm); warn
+    where a tip column's name says another unit (its numbers are read as metres all the same)."""
     for i, name in enumerate(tip_columns):
+        if unit := next((unit for suffix, unit in SUSPECT_UNITS.items() if name.endswith(suffix)), None):
+            warnings.warn(
+                f"{source}: column {name!r} is read as metres, though its name says {unit}: convert it to "
+                "metres (or rename it if it holds metres)",
+                stacklevel=4,
+            )
         measured = tip[np.isfinite(tip[:, i]), i]
         if name.endswith("_m") and len(measured) and np.ptp(measured) > WIDEST_SPAN:
             raise ValueError(
@@ -690,7 +697,11 @@ def load_dataset(
     )
 
     def compute() -> dict:
-        tables = [_table(str(path), content, inputs, tip, dropouts) for path, content in zip(files, contents)]
+        shown = dict(unit="file", disable=None, leave=False)  # on a terminal only: minutes for a few long runs
+        tables = [
+            _table(str(path), content, inputs, tip, dropouts)
+            for path, content in tqdm(list(zip(files, contents)), desc="reading recordings", **shown)
+        ]
         for table in tables[1:]:
             for what in ("input_columns", "tip_columns"):
                 if getattr(table, what) != getattr(tables[0], what):
@@ -714,7 +725,10 @@ def load_dataset(
             if not pieces:
                 raise ValueError(f"{tables[0].source}: no stretch between long gaps makes a step, in any file")
             owners, runs = zip(*pieces)
-        runs = [_with_delay(_resample(run, period, max_gap, noise, jerk), delay) for run in runs]
+        runs = [
+            _with_delay(_resample(run, period, max_gap, noise, jerk), delay)
+            for run in tqdm(runs, desc="smoothing recordings", **(shown | dict(unit="run")))
+        ]
         if delay is None:
             estimates = [run.delay for run in runs if math.isfinite(run.delay)]
             if not estimates:
