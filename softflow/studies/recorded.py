@@ -26,7 +26,7 @@ from softflow.rod.robots import HW_ROBOT
 from softflow.store import content_key
 from softflow.studies import ambiguity
 from softflow.studies.closed_loop import CAMERA_LATENCY, learning_options, mode_options
-from softflow.studies.study import Grid, trained
+from softflow.studies.study import Grid, recorded_cell_model, trained
 
 GAPS = {"friction": hardware.FRICTION_GAP, "typical": hardware.TYPICAL_GAP}  # the cell's gap by name
 RECORDINGS, SIMULATOR = "recordings", "simulator"  # what a cell's model was trained on
@@ -153,16 +153,7 @@ def recorded_model(cell: dict, profile_name: str, device: str, workdir: Path):
     grid, gravity, gap = RECORDED[profile_name], cell["gravity"], cell["gap"]
     dataset = training_set(record(workdir, profile_name, gravity, gap, TRAINING_SEED, cell["runs"]), workdir)
     held_out = held_out_set(record(workdir, profile_name, gravity, gap, HELD_OUT_SEED, grid.held_out), workdir)
-    model, checkpoint = training.ensure_trained(
-        cell["model"],
-        grid.budget(profile_name),
-        dataset,
-        None,
-        None,
-        seed=cell["seed"],
-        root=workdir / "models" / profile_name,
-        device=device,
-    )
+    model, checkpoint = recorded_cell_model(cell, grid, profile_name, dataset, workdir, device)
     return model, checkpoint, dataset, held_out
 
 

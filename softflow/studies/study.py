@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from softflow import data
+from softflow import data, training
 from softflow.control import floor
 from softflow.control.planning import Controller, SaturationWarning, score
 from softflow.models.registry import model_spec, resolved_kwargs
@@ -72,6 +72,21 @@ def trained(name: str, profile: Profile, model_kwargs: dict | None = None, seed:
         )
         for n in names
     }
+
+
+def recorded_cell_model(cell: dict, grid: Grid, profile_name: str, dataset: data.Dataset, workdir: Path, device: str):
+    """A cell's model of recorded runs (no rod): trained on ``dataset`` with the grid's budget and
+    the cell's seed under the study's folder, or found trained there; (model, checkpoint)."""
+    return training.ensure_trained(
+        cell["model"],
+        grid.budget(profile_name),
+        dataset,
+        None,
+        None,
+        seed=cell["seed"],
+        root=workdir / "models" / profile_name,
+        device=device,
+    )
 
 
 def fixed_budget(profile_name: str, train) -> Profile:

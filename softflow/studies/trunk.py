@@ -43,7 +43,7 @@ from softflow.models.registry import label
 from softflow.profiles import FIXED_BUDGET, TrainConfig
 from softflow.store import REPO, cached_arrays
 from softflow.studies import ambiguity, stats
-from softflow.studies.study import Grid, fixed_budget, trained
+from softflow.studies.study import Grid, fixed_budget, recorded_cell_model, trained
 
 TRUNK = REPO / "datasets" / "asl_trunk"
 TRAINING_RUN, HELD_OUT = "random_1", ("random_2", "circles")
@@ -124,16 +124,7 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
         measured = {}
     else:
         dataset = training_set(cell["observation"], delay, TRUNK_GRID[profile_name].seconds, workdir)
-        model, checkpoint = training.ensure_trained(
-            cell["model"],
-            grid.budget(profile_name),
-            dataset,
-            None,
-            None,
-            seed=cell["seed"],
-            root=workdir / "models" / profile_name,
-            device=device,
-        )
+        model, checkpoint = recorded_cell_model(cell, grid, profile_name, dataset, workdir, device)
         u_range = recorded_range(checkpoint["recorded"])  # as load_controller clips a model of recordings
         controller = Controller(model, cell["model"], robot=None, gravity=None, u_range=u_range, workspace_margin=None)
         plans = {name: controller.plan(states) for name, (_, states) in runs.items()}  # (T, 6): step t's input

@@ -49,14 +49,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from softflow import data, training
+from softflow import data
 from softflow.control.planning import Controller, SaturationWarning, recorded_range
 from softflow.data import recordings
 from softflow.models.registry import label
 from softflow.profiles import FIXED_BUDGET, TrainConfig
 from softflow.store import cached_arrays
 from softflow.studies import ambiguity, judges, stats, trunk
-from softflow.studies.study import Grid, trained
+from softflow.studies.study import Grid, recorded_cell_model, trained
 
 TRAINING_RUNS = ("random_1", "payload_100g", "payload_300g")
 HELD_OUT = trunk.HELD_OUT  # random_2, circles
@@ -124,16 +124,7 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
         plans = {name: referee_plan(cell["model"], u, mean_input) for name, (u, _) in runs.items()}
     else:
         dataset = training_set(cell["observation"], delay, grid, profile_name, workdir)
-        model, checkpoint = training.ensure_trained(
-            cell["model"],
-            grid.budget(profile_name),
-            dataset,
-            None,
-            None,
-            seed=cell["seed"],
-            root=workdir / "models" / profile_name,
-            device=device,
-        )
+        model, checkpoint = recorded_cell_model(cell, grid, profile_name, dataset, workdir, device)
         controller = Controller(
             model,
             cell["model"],
