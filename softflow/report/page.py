@@ -74,6 +74,10 @@ FIGURES = [
     ("Two-segment rod: open-loop tracking by the models of the tip", "12_tracking.png"),
     ("Cable friction: the twin's hysteresis loop against the friction coefficient", "13_hysteresis.png"),
     ("The ASL trunk: judged tip error of each planner", "14_judged.png"),
+    (
+        "The ASL trunk asked again: each judge's resolution curve (known perturbations of the inputs)",
+        "14_v2_resolution.png",
+    ),
     ("A flow in one step: tracking RMSE of each plan (model@steps)", "15_one_step.png"),
 ]
 

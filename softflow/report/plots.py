@@ -769,3 +769,28 @@ def hysteresis(loops: dict):
     ax_loop.legend(loc="upper left")
     ax_gap.legend(loc="lower center")
     return fig
+
+
+@_styled
+def resolution_curves(curve):
+    """A referee's resolution curves: one panel per family, each perturbation of the recorded
+    inputs against the judged change of the tip error (mm) it causes, with its bootstrap interval,
+    one colour per judge (``trunk_v2.resolution``'s rows). Above zero: the judge sees the input
+    is worse; an interval below zero: it rates a worse input better."""
+    families = list(dict.fromkeys(curve.family))
+    fig, axes = plt.subplots(1, len(families), figsize=(3.6 * len(families) + 0.8, 3.4), sharey=True)
+    for ax, family in zip(np.atleast_1d(axes), families):
+        part = curve[curve.family == family]
+        inputs = list(dict.fromkeys(part.input))
+        for k, (judge, rows) in enumerate(part.groupby("judge", sort=False)):
+            x = np.array([inputs.index(name) for name in rows.input]) + 0.15 * (k - 0.5)
+            error = [rows.difference - rows.low, rows.high - rows.difference]
+            ax.errorbar(x, rows.difference, yerr=error, fmt="o", color=f"C{k}", capsize=2, label=judge)
+        ax.axhline(0, color="0.5", lw=0.8)
+        ax.set(title=family, xticks=range(len(inputs)))
+        ax.set_yscale("symlog", linthresh=1)  # linear within +-1 mm, where the resolutions lie
+        ax.yaxis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:g}"))
+        ax.set_xticklabels(inputs, rotation=60, ha="right")
+    np.atleast_1d(axes)[0].set_ylabel("judged change [mm]")
+    np.atleast_1d(axes)[-1].legend()
+    return fig
