@@ -117,7 +117,10 @@ def test_command_line_errors_name_the_flags_not_the_keywords(tmp_path, capsys):
     with pytest.raises(SystemExit) as exit_:
         cli.main(["train", "mlp", "--recordings", str(tmp_path), "--profile", "ci", "--delay", "0"])
     message = capsys.readouterr().err
-    assert exit_.value.code == 2 and "--fractions" in message and "(1/3, 1/3)" not in message
+    assert exit_.value.code == 2 and "record at least three" in message and "usage:" not in message
+    assert cli.in_flags("or pass other fractions (e.g. (1/3, 1/3) for three)") == (
+        "or pass --fractions (e.g. --fractions 0.34,0.34 for three)"
+    )
     assert cli.in_flags("name them with tip=[...]; pass delay= (s)") == "name them with --tip COLS; pass --delay (s)"
     with pytest.raises(SystemExit):
         cli.main(["plan", "mlp", "--profile", "ci", "--reference", "p.csv", "--out", str(tmp_path / "u.csv")])

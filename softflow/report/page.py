@@ -659,9 +659,15 @@ def trunk_section(profile: Profile) -> list[str]:
         trunk_summary(tables, rows["key"].nunique(), cells),
         "",
         *([markdown(rule.set_index(["observation", "family"])), ""] if len(rule) else []),
-        "Asked again with two judges that never saw the run they score, validated before any planner row "
-        f"(`trunk_v2`, notebook 14): {trunk_v2.answer(computed_rows(profile, 'trunk_v2'), profile.name)}",
-        "",
+        *(
+            [
+                "Asked again with two judges that never saw the run they score, validated before any planner row "
+                f"(`trunk_v2`, notebook 14): {trunk_v2.answer(computed_rows(profile, 'trunk_v2'), profile.name)}",
+                "",
+            ]
+            if profile.name in trunk_v2.GRID
+            else []
+        ),
     ]
 
 

@@ -200,7 +200,9 @@ def result_block(profile: Profile) -> str:
         two_segment=_two_segment(two_segment_differences(computed_rows(profile, "two_segment"))),
         recorded=_recorded(read_sweep(profile, "recorded")),
         trunk=_trunk(read_sweep(profile, "trunk"), len(trunk.cells(profile.name))),
-        trunk_v2=trunk_v2.answer(computed_rows(profile, "trunk_v2"), profile.name),
+        trunk_v2=trunk_v2.answer(computed_rows(profile, "trunk_v2"), profile.name)
+        if profile.name in trunk_v2.GRID
+        else None,
         one_step=_one_step(computed_rows(profile, "one_step"), len(one_step.cells(profile.name))),
     )
     return f"{BEGIN}\n{_rendered('result.md.j2', context)}\n{END}"
