@@ -595,3 +595,15 @@ def test_a_tip_column_named_in_millimetres_is_read_as_metres_with_a_warning(tmp_
     with pytest.warns(UserWarning, match=r"column 'x_mm' is read as metres, though its name says millimetres"):
         run = recordings.read(path, tip=["x_mm", "y_mm"], delay=0.0)
     assert run.tip_columns == ("x_mm", "y_mm")
+
+
+def test_a_constant_tip_column_is_refused_as_held_frames_with_the_reason(tmp_path):
+    """A planar rig logging a z that never changes: as a point of its own every frame repeats the
+    first, so all are held; the refusal says so and what to do."""
+    path = write_sines(tmp_path / "run.csv", np.random.default_rng(5), tip=("x_m", "y_m"))
+    table = pd.read_csv(path)
+    table["depth_m"] = np.where(table.x_m.notna(), 0.25, np.nan)
+    table.to_csv(path, index=False)
+    with pytest.raises(ValueError, match=r"'depth_m': fewer than two frames \(only row \d+\); the other \d+ repeat"):
+        recordings.read(path, tip=["x_m", "y_m", "depth_m"], delay=0.0)
+    assert recordings.read(path, tip=["x_m", "y_m"], delay=0.0).tip_columns == ("x_m", "y_m")

@@ -233,7 +233,14 @@ def _table(source: str, content: bytes, inputs=None, tip=None, dropouts: bool = 
                 f"{source}: column {name!r}: no tip position at all (every row empty; name the measured with tip=)"
             )
         if len(frames) == 1:
-            raise ValueError(f"{source}: column {name!r}: fewer than two frames (only row {frames[0]})")
+            held = int(frozen[i]) if np.ndim(frozen) else 0
+            why = (
+                f"; the other {held} repeat the one before exactly and count as held frames (a constant column: "
+                "leave it out of the tip columns)"
+                if held
+                else ""
+            )
+            raise ValueError(f"{source}: column {name!r}: fewer than two frames (only row {frames[0]}){why}")
     u = np.stack([_numbers(frame, name, source) for name in input_columns], -1)  # (R, m)
     given = np.isfinite(u)
     partial = np.flatnonzero(given.any(1) & ~given.all(1))
