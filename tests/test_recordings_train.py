@@ -94,6 +94,15 @@ def test_a_model_not_trained_on_the_recordings_names_the_command(ci_recordings):
         control.load_controller("lstm", "ci", recordings=runs)
 
 
+def test_a_checkpoint_loaded_by_path_against_other_recordings_is_refused(trained):
+    runs, _, outputs, data, _ = trained
+    path = outputs["mlp"][-1]
+    assert control.load_controller(path, recordings=data).name == "mlp"  # the recordings it was trained on
+    other = recordings.load_dataset(runs, fractions=(0.5, 0.25), data_dir=None)  # another split: another Dataset
+    with pytest.raises(ValueError, match="was trained on other data"):
+        control.load_controller(path, recordings=other)
+
+
 def test_the_cli_names_the_whole_train_command_of_a_missing_model_of_recordings(ci_recordings, capsys, tmp_path):
     """Typed as asked, the command trains exactly the model plan looks for: --tip, --fractions and
     the other options that make its Dataset are part of it."""

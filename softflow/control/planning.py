@@ -416,6 +416,14 @@ def load_controller(
             raise ValueError(f"no checkpoint file {path}; expected a .pt file written by softflow train")
         checkpoint = load_checkpoint(path)
         _check_controller(checkpoint["name"])
+        if recordings is not None:
+            given = recordings if isinstance(recordings, Dataset) else load_recordings(recordings)
+            if checkpoint.get("data_key") != given.key:
+                raise ValueError(
+                    f"{path} was trained on other data ({checkpoint.get('data_key')}) than these recordings "
+                    f"({given.key}: their files or the options they were read with differ); load it without "
+                    "recordings, or train a model on these"
+                )
         return _controller(checkpoint, path, robot, gravity)
     _check_controller(name)
     if recordings is None:
