@@ -871,7 +871,7 @@ def describe(
             seconds=float(table.times[-1] - table.times[0]),
             command_hz=1 / table.command_period,
             frame_hz=1 / float(np.median(np.diff(frames))) if len(frames) > 1 else np.nan,
-            points=", ".join(_point_name(table.tip_columns, point) for point in points),
+            points=", ".join(dict.fromkeys(point_of.values())),
             held=", ".join(str(int(table.frozen[point[0]])) for point in points),
             jumps=", ".join(str(int(table.jumps[point[0]])) for point in points),
             long_gaps="; ".join(gaps),
