@@ -109,10 +109,10 @@ $(ELASTICA): benchmarks/requirements-elastica.txt
 bench: $(STAMP) $(ELASTICA)  # PyElastica is a benchmark-only dependency, in its own venv
 	$(PY) benchmarks/bench_simulator.py
 	$(PY) benchmarks/bench_two_segment.py
-	$(PY) benchmarks/bench_planning.py --profile $(BENCH_PROFILE)
+	$(PY) benchmarks/bench_planning.py  # the shipped paper models, as a user runs them
 	$(PY) benchmarks/bench_training.py --profile $(BENCH_PROFILE)
 	$(PY) benchmarks/bench_sweep.py
-	$(PY) benchmarks/bench_loop.py --profile $(BENCH_PROFILE)
+	$(PY) benchmarks/bench_loop.py
 
 # What a newcomer waits for (long: about as much as make test and a ci reproduce together):
 # make venv + make test on a fresh clone, and each notebook's ci run.

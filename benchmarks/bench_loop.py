@@ -16,8 +16,8 @@ one core busy.
 Reports per run: step latency (the call alone) and the period's work (state, step, send)
 at p50 / p99 / p99.9 and their maximum, deadline misses (a period whose work exceeded 1 ms),
 and late starts (a period begun more than 1 ms after its deadline, e.g. preempted while
-waiting). Uses the profile's trained models (default: ci, the paper's network sizes; trains them
-first if missing). Writes figures/bench/loop.csv.
+waiting). Uses the profile's trained models (default: paper, the shipped weights; another
+profile trains them first if missing). Writes figures/bench/loop.csv.
 """
 
 from __future__ import annotations
@@ -29,9 +29,9 @@ import sys
 import time
 
 import numpy as np
-from results_file import write_results
+from results_file import trained_controller, write_results
 
-from softflow import control, data, training
+from softflow import data
 from softflow.profiles import get_profile
 
 PERIOD = 1e-3  # s
@@ -85,19 +85,18 @@ def summary(run: dict) -> dict:
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--profile", default="ci")
+    parser.add_argument("--profile", default="paper")
     parser.add_argument("--models", default="mlp,rf,rf-fwd,rf-physical,rf-1,rf-fwd-1,rf-physical-1")
     parser.add_argument("--seconds", type=float, default=60.0)
     args = parser.parse_args()
-    profile = get_profile(args.profile)
-    dataset = data.load_dataset(profile, progress=False)
-    plant = dataset.states[dataset.test[0]]  # (501, 6): the simulated rod on a held-out episode
+    held_out = data.load_dataset(get_profile("ci"), progress=False)  # the rod's own runs, made in seconds
+    plant = held_out.states[held_out.test[0]]  # (501, 6): the simulated rod on a held-out episode
     results = {}
     for condition, (loaded, spin) in CONDITIONS.items():
         busy = subprocess.Popen([sys.executable, "-c", "while True: pass"]) if loaded else None
         try:
             for name in args.models.split(","):
-                controller = control.Controller(training.ensure_trained(name, profile, dataset)[0], name)
+                controller = trained_controller(name, args.profile)
                 run_loop(controller, plant, 1.0, spin)  # warm-up: caches, the grid, the allocator
                 results[f"{condition}.{name}"] = row = summary(run_loop(controller, plant, args.seconds, spin))
                 print(

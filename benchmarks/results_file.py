@@ -36,3 +36,15 @@ def write_results(name: str, results: dict) -> Path:
     path = RESULTS / f"{name}.csv"
     pd.DataFrame(rows).to_csv(path, index=False)
     return path
+
+
+def trained_controller(name: str, profile: str):
+    """The controller of model ``name`` of a profile on the paper rod: the shipped weights for
+    ``paper`` (what a user runs), else the profile's, trained first if missing."""
+    from softflow import control, data, training
+    from softflow.profiles import get_profile
+
+    if profile == "paper":
+        return control.load_controller(name)
+    P = get_profile(profile)
+    return control.Controller(training.ensure_trained(name, P, data.load_dataset(P, progress=False))[0], name)

@@ -145,32 +145,6 @@ def test_samples_are_independent_draws_and_their_mean_is_a_plan(dataset, trained
         controller.plan(references, n_samples=3)
 
 
-@pytest.mark.parametrize("name", ["rf", "rf-fwd"])
-def test_lean_numpy_sampler_gives_the_torch_models_u(name, dataset, trained):
-    from softflow.models.flow import LeanFlow
-
-    model, _ = trained(name)
-    window, _, _ = training.Sampler(dataset, dataset.test, 1, np.random.default_rng(0)).fixed(500, 0)
-    z = torch.randn(500, 2)
-    with torch.no_grad():
-        expected = model.predict(window, noise=z, steps=6).numpy()
-    lean = LeanFlow(model).predict(window.double().numpy(), z.double().numpy(), steps=6)
-    np.testing.assert_allclose(lean, expected, atol=1e-5)
-
-
-def test_lean_sampler_handles_the_physical_prior():
-    from softflow.models.flow import LeanFlow
-
-    torch.manual_seed(0)
-    model = RectifiedFlow(prior=True, hidden=32, layers=2).eval()
-    window, prior, z = torch.randn(50, 2, 6), torch.randn(50, 2), torch.randn(50, 2)
-    model.set_normalizer(torch.randn(3, 20, 6), torch.randn(3, 19, 2), prior=torch.randn(3, 19, 2))
-    with torch.no_grad():
-        expected = model.predict(window, prior=prior, noise=z).numpy()
-    lean = LeanFlow(model).predict(window.double().numpy(), z.double().numpy(), prior=prior.double().numpy())
-    np.testing.assert_allclose(lean, expected, atol=1e-5)
-
-
 def test_ensure_trained_uses_each_models_budget_and_reuses_the_checkpoint(dataset, tmp_path, monkeypatch):
     monkeypatch.setattr(checkpoints, "TRAINED", tmp_path)
     longer = dataclasses.replace(QUICK, epochs=4)
@@ -214,11 +188,13 @@ def test_rf_physical_plans_its_prior_plus_a_learned_residual(dataset, trained, t
     np.testing.assert_allclose(silent_plan, expected, atol=1e-5)
 
 
-def test_one_euler_step_from_tau_is_the_one_step_endpoint_estimate():
-    """The sampler and RF-FWD's consistency term share one flow: a single Euler step from tau to 1
-    is xi_tau + (1 - tau) v, and predict is the integration from noise at tau = 0."""
+@pytest.mark.parametrize("flow", [RectifiedFlow, MeanFlow])
+def test_one_euler_step_from_tau_is_the_one_step_endpoint_estimate(flow):
+    """The sampler (its first layer split: the condition's share once, the time's a constant) and
+    RF-FWD's consistency term (the whole network on the joined inputs) share one flow: a single
+    step from tau to 1 is xi_tau + (1 - tau) v, and predict is the integration from noise at 0."""
     torch.manual_seed(0)
-    model = RectifiedFlow(hidden=32, layers=2).eval()
+    model = flow(hidden=32, layers=2).eval()
     window = torch.randn(16, 2, 6)
     condition, xi = model.condition(window), torch.randn(16, 2)
     with torch.no_grad():

@@ -68,7 +68,7 @@ def test_every_model_trains_plans_and_steps_in_the_datas_sizes(name, synthetic, 
     assert u.shape == (48, 3) and np.isfinite(u).all()
     reloaded = control.Controller(checkpoints.model_from_checkpoint(checkpoint), name)
     np.testing.assert_array_equal(reloaded.plan(reference), u)  # the record restores the sizes
-    if ctl.lean is not None:  # per-step models: the real-time step gives the plan's u
+    if ctl.has_step:  # per-step models: the real-time step gives the plan's u
         np.testing.assert_allclose(ctl.step(reference[10], reference[11]), u[10], atol=1e-4)
 
 

@@ -100,7 +100,7 @@ def run_loop(
     check_choice(condition, "condition", CONDITIONS)
     X = reference.states
     controller.check_workspace(X)
-    if controller.lean is None:
+    if not controller.has_step:
         raise ValueError(f"{controller.name} has no one-transition step; closed loop needs an MLP or RF model")
     if not (isinstance(watchdog_frames, int) and watchdog_frames >= 1):
         raise ValueError(f"watchdog_frames must be a positive integer; got {watchdog_frames!r}")

@@ -12,13 +12,12 @@ import torch
 
 from softflow.checks import as_real_array, check_choice
 from softflow.control.metrics import actuation_mae, fitting_lag, input_energy, phase_lag, tracking_rmse
+from softflow.control.step import BoundGraph, Step
 from softflow.data.dataset import Dataset, dataset_path, gather_windows
 from softflow.data.recordings import load_dataset as load_recordings
-from softflow.models.baselines import InverseMLP, LeanMLP
 from softflow.models.checkpoints import find_checkpoint, identity, load_checkpoint, model_from_checkpoint
 from softflow.models.common import one_thread
-from softflow.models.flow import LeanFlow, RectifiedFlow
-from softflow.models.kernels import inside
+from softflow.models.flow import RectifiedFlow
 from softflow.models.registry import CONTROLLERS
 from softflow.profiles import get_profile
 from softflow.rod.dynamics import Simulator
@@ -60,7 +59,9 @@ class Controller:
     returns inputs already advanced by it, so row k is sent at period k (``advance``).
     ``tip_columns``: the observed columns a model of recorded runs reads, named in errors.
     ``dt``: the sample period (s) a step spans: by default the rod's, ``DT``, and unknown (None)
-    without a rod; a model of recorded runs gets its recordings'."""
+    without a rod; a model of recorded runs gets its recordings'. ``safe_input``: what the step
+    sends for a transition it refuses (m,), by default the centre of the input range (0 N on
+    the rods; 0 clipped into a range that is not finite)."""
 
     def __init__(
         self,
@@ -77,6 +78,7 @@ class Controller:
         delay_steps: int = 0,
         tip_columns: tuple[str, ...] = (),
         dt: float | None = None,
+        safe_input=None,
     ):
         if not (isinstance(delay_steps, int) and delay_steps >= 0):
             raise ValueError(f"delay_steps must be a whole number of periods >= 0; got {delay_steps!r}")
@@ -89,7 +91,7 @@ class Controller:
                 f"{name} learns a residual around the static prior of a simulated rod: it needs that rod "
                 "(robot=), and a model of recorded runs has none"
             )
-        self.model, self.name, self.seed, self.robot, self.gravity = model.eval(), name, seed, robot, gravity
+        self.model, self.name, self.seed, self.robot, self.gravity = model, name, seed, robot, gravity
         self._rng = np.random.default_rng(seed)  # sample_step's draws
         norm, p = model.state_norm, model.dims.position
         self._mean, self._std = (b.numpy()[:p].astype(np.float64) for b in (norm.mean, norm.std))  # tip position
@@ -110,97 +112,150 @@ class Controller:
             symmetric = (low == -high).all() and (high == high[0]).all()
             bounds = [f"{a:g} to {b:g}" for a, b in zip(low, high)]
             self._range = f"the input range +-{high[0]:g}" if symmetric else f"the input ranges {', '.join(bounds)}"
+        finite = np.isfinite(self._low) & np.isfinite(self._high)
+        default = np.where(finite, (self._low + self._high) / 2, np.clip(0.0, self._low, self._high))
+        self.safe_input = default if safe_input is None else np.asarray(safe_input, np.float64)
+        if (
+            self.safe_input.shape != (m,)
+            or not ((self._low <= self.safe_input) & (self.safe_input <= self._high)).all()
+        ):
+            raise ValueError(f"safe_input must be one value per input inside {self._range}; got {safe_input!r}")
         self.generative = isinstance(model, RectifiedFlow)
         self.statics = Simulator(robot, gravity).static_table() if model.needs_statics else None
         self.statics_grid = InverseGrid(self.statics) if self.statics is not None else None  # step's prior
-        self.lean = LeanFlow(model) if self.generative else LeanMLP(model) if isinstance(model, InverseMLP) else None
+        self.has_step = model.context == 1  # models of one transition; those of a window of past states only plan
+
+    @property
+    def model(self) -> torch.nn.Module:
+        return self._model
+
+    @model.setter
+    def model(self, model: torch.nn.Module):
+        """The inverse model (in eval mode); another model makes its step again when next used."""
+        self._model, self._step_module, self._graph = model.eval(), None, None
+
+    @property
+    def step_module(self) -> Step:
+        """The step, defined once (``control.step.Step``): the model with this controller's input
+        range, safe input, workspace box and, for a prior model, its rod's inverse-statics grid."""
+        if not self.has_step:
+            raise ValueError(
+                f"{self.name} reads a window of {self.model.context} past transitions: it has no "
+                "one-transition step; use plan"
+            )
+        if self._step_module is None:
+            self._step_module = Step(
+                self.model,
+                low=self._low,
+                high=self._high,
+                safe=self.safe_input,
+                box_low=self._state_box[0],
+                box_high=self._state_box[1],
+                grid=self.statics_grid,
+            )
+        return self._step_module
+
+    @property
+    def bound_graph(self) -> BoundGraph:
+        """``step_module``'s graph in onnxruntime, what ``step`` runs (made at its first use)."""
+        if self._graph is None:
+            self._graph = BoundGraph(self.step_module)
+        return self._graph
 
     def step(self, x_t, x_next, *, clip: bool = True) -> np.ndarray:
         """u_t for one transition, (d,), (d,) -> (m,), or a batch, (B, d), (B, d) -> (B, m): the
-        real-time path (one compiled call, ``models.kernels``; no autograd), the same u as ``plan`` to about 1e-5 N.
-        A flow starts from z = 0, as ``plan`` does. u beyond the actuator range is clipped,
-        with a ``SaturationWarning`` (``clip=False``: returned as the model gives it, for a
-        loop that adds its own correction first). A state outside the workspace is refused, as
-        ``plan`` refuses a reference: a units slip must not command full actuation. RF-Physical's
-        prior comes from the inverse-statics grid (``InverseGrid``, within 1e-3 N of ``plan``'s
-        table) rather than the table's 12 Gauss-Newton steps (``make bench`` times both,
-        ``prior.grid_ms`` and ``prior.table_ms``). Models that read a window of past states (LSTM,
-        Transformer) have no step: ``plan`` them."""
-        if self.lean is None:
-            raise ValueError(
-                f"{self.name} reads a window of {self.model.context} past transitions: it has no "
-                f"one-transition step; use plan"
-            )
-        window, unbatched = self._transition(x_t, x_next)  # (B, 2, d)
-        prior = self._prior(window)
-        u = (
-            self.lean.predict(window, None, prior)  # from z = 0
-            if self.generative
-            else self.lean.predict(window, prior)
-        )
+        real-time path, ``step_module`` exported as one ONNX graph and run by onnxruntime (the
+        graph ``softflow export`` writes), the same u as ``plan`` to about 1e-5 N. A flow starts
+        from z = 0, as ``plan`` does. u beyond the input range is clipped, with a
+        ``SaturationWarning`` (``clip=False``: the model's u as it gives it, from the module in
+        torch, for a loop that adds its own correction first). A transition the graph flags
+        outside (a state not finite or outside the workspace, or RF-Physical's prior off its
+        grid) is refused, as ``plan`` refuses a reference: a units slip must not command full
+        actuation (a robot's program sends the graph's safe input instead). RF-Physical's prior
+        comes from the inverse-statics grid (``InverseGrid``, within 1e-3 N of ``plan``'s table).
+        Models that read a window of past states (LSTM, Transformer) have no step: ``plan`` them."""
+        bound, d = self.bound_graph, self.model.dims.state
+        if clip and type(x_t) is type(x_next) is np.ndarray and x_t.shape == x_next.shape == (d,):  # real time
+            bound.x_t[0], bound.x_next[0] = x_t, x_next  # float32, as the graph reads them
+            bound.run()
+            if not bound.outside[0]:
+                u = bound.u[0].astype(np.float64)
+                if bound.saturated():
+                    self._warn_clipped(u, "stepped")
+                return u
+        x, unbatched = as_real_array(x_t, "x_t", (None, d), allow_unbatched=True)
+        x_next, _ = as_real_array(x_next, "x_next", x.shape[1:] if unbatched else x.shape)
+        x, x_next = np.atleast_2d(x), np.atleast_2d(x_next)
         if clip:
-            u = self._clip(u, "stepped")
+            u, outside = bound.session.run(None, {"x_t": x.astype(np.float32), "x_next": x_next.astype(np.float32)})
+        else:
+            with torch.inference_mode(), one_thread():
+                pair = (torch.as_tensor(a, dtype=torch.float32) for a in (x, x_next))
+                u, outside = (a.numpy() for a in self.step_module.unclipped(*pair))
+        if outside.any():
+            self._refuse(x, x_next, outside, unbatched)
+        u = u.astype(np.float64)
+        if clip:
+            self._warn_clipped(u, "stepped")
         return u[0] if unbatched else u
+
+    def _refuse(self, x_t, x_next, outside, unbatched: bool):
+        """Raise for the transitions (B, d) the step flags outside, naming why."""
+        for x, name in ((x_t, "x_t"), (x_next, "x_next")):
+            self.check_workspace(x[0] if unbatched else x, name)
+        if self.statics_grid is not None:
+            raise ValueError(
+                f"{self.name}: x_next's tip at index {int(np.argmax(outside))} lies where the static prior's "
+                "grid does not reach (off the grid, or beside the static table's clipped edge); plan it instead"
+            )
+        raise ValueError(f"{self.name}: a state at index {int(np.argmax(outside))} is outside the workspace")
 
     def sample_step(self, x_t, x_next, n: int, *, seed: int | None = None) -> np.ndarray:
         """``n`` draws of u_t for one transition, (d,), (d,) -> (n, m), or a batch, -> (n, B, m): the
         flow's uncertainty about this step, from independent noise z (numpy's normal; ``seed``
         None: the controller's own generator, so each call draws afresh), not clipped. The draws
-        go through the sampler as one batch (``make bench`` times 16 of them against the step)."""
+        go through ``step_module`` as one batch."""
         if not (isinstance(n, int) and n >= 1):
             raise ValueError(f"n must be a positive integer; got {n!r}")
         if not self.generative:
             raise ValueError(f"{self.name} is a regression model: it has no noise to sample")
-        window, unbatched = self._transition(x_t, x_next)  # (B, 2, d)
-        B, m = len(window), self.model.dims.inputs
-        window = np.broadcast_to(window, (n, *window.shape)).reshape(n * B, *window.shape[1:])  # (n B, 2, d)
-        prior = self._prior(window)
-        rng = self._rng if seed is None else np.random.default_rng(seed)
-        u = self.lean.predict(window, rng.standard_normal((n * B, m)), prior).reshape(n, B, m)
-        return u[:, 0] if unbatched else u
-
-    def _prior(self, window) -> np.ndarray | None:
-        """RF-Physical's prior u_phys (B, m) at the tip of x_next for windows (B, 2, d), from the
-        grid; None for a model without one."""
-        if self.statics_grid is None:
-            return None
-        return self.statics_grid.inverse(window[:, 1, : self.model.dims.position])
-
-    def _transition(self, x_t, x_next) -> tuple[np.ndarray, bool]:
-        """The window [x_t, x_next] (B, 2, d) float64 of ``step``'s arguments, checked (finite,
-        inside the workspace), and whether they were one transition; two float64 states of the
-        right size, the real-time case, skip the general conversion."""
-        d = self.model.dims.state
-        if (
-            type(x_t) is type(x_next) is np.ndarray
-            and x_t.dtype == x_next.dtype == np.float64
-            and x_t.shape == x_next.shape == (d,)
-        ):
-            pair = np.array((x_t, x_next))  # (2, d)
-            if inside(pair, *self._state_box):  # finite, and inside the workspace
-                return pair[None], True
+        d, m = self.model.dims.state, self.model.dims.inputs
         x, unbatched = as_real_array(x_t, "x_t", (None, d), allow_unbatched=True)
         x_next, _ = as_real_array(x_next, "x_next", x.shape[1:] if unbatched else x.shape)
-        window = np.stack([x, x_next[None] if unbatched else x_next], 1)
-        if self._outside(window):  # rare: name the state that is out
-            for j, name in enumerate(("x_t", "x_next")):
-                self.check_workspace(window[0, j] if unbatched else window[:, j], name)
-        return window, unbatched
+        x, x_next = (np.tile(np.atleast_2d(a), (n, 1)) for a in (x, x_next))  # (n B, d) each
+        rng = self._rng if seed is None else np.random.default_rng(seed)
+        noise = torch.as_tensor(rng.standard_normal((len(x), m)), dtype=torch.float32)
+        with torch.inference_mode(), one_thread():
+            u, outside = self.step_module.unclipped(
+                *(torch.as_tensor(a, dtype=torch.float32) for a in (x, x_next)), noise=noise
+            )
+        if outside.any():
+            self._refuse(x, x_next, outside.numpy(), False)
+        u = u.numpy().astype(np.float64).reshape(n, -1, m)
+        return u[:, 0] if unbatched else u
 
     def _clip(self, u, what: str) -> np.ndarray:
         """u (..., m) clipped to the input range, with a ``SaturationWarning`` that counts the
-        values clipped (3 levels up: the caller of ``plan`` or ``step``)."""
-        if inside(u.reshape(-1, u.shape[-1]), self._low, self._high):  # the usual case
-            return u
+        values clipped (3 levels up: the caller of ``plan``)."""
         kept = np.clip(u, self._low, self._high)
         if (kept != u).any():
-            clipped = int(np.sum(kept != u))
-            warnings.warn(
-                f"{self.name}: {clipped} of {u.size} {what} u values exceed {self._range} and were clipped",
-                SaturationWarning,
-                stacklevel=3,
-            )
+            self._warn(int(np.sum(kept != u)), u.size, what)
         return kept
+
+    def _warn_clipped(self, u, what: str):
+        """The ``SaturationWarning`` of the step's graph, which clipped u (..., m): a clipped value is
+        its input's bound (the step's, in float32) exactly."""
+        low, high = (b.numpy() for b in (self.step_module.low, self.step_module.high))
+        at_bound = (u == low) | (u == high)
+        if at_bound.any():
+            self._warn(int(at_bound.sum()), u.size, what)
+
+    def _warn(self, clipped: int, size: int, what: str):
+        warnings.warn(
+            f"{self.name}: {clipped} of {size} {what} u values exceed {self._range} and were clipped",
+            SaturationWarning,
+            stacklevel=4,
+        )
 
     def plan(
         self, reference, *, noise: str = "zero", seed: int | None = None, n_samples: int = 1, **options
@@ -276,6 +331,7 @@ class Controller:
         if margin is not None and not margin > 0:
             raise ValueError(f"workspace_margin must be positive or None; got {margin!r}")
         self._margin = margin
+        self._step_module = self._graph = None  # the step's box moves: built again when next used
         d, p = self.model.dims.state, len(self._mean)
         largest = np.finfo(np.float64).max  # any finite value, where nothing is refused
         self._state_box = np.full(d, -largest), np.full(d, largest)  # (d,) each
@@ -341,7 +397,11 @@ class Controller:
             start = torch.zeros_like(z) if noise == "zero" else z  # where each step's flow starts
             options["noise"] = start.expand(B, T, dims.inputs).reshape(B * T, dims.inputs)
         with torch.inference_mode(), one_thread():
-            u = self.model.predict(windows, **extras, **options).numpy().astype(np.float64).reshape(B, T, dims.inputs)
+            if self.has_step:  # the step on a batch, with the static table's prior where the model has one
+                u, _ = self.step_module.unclipped(windows[:, 0], windows[:, 1], **extras, **options)
+            else:
+                u = self.model.predict(windows, **extras, **options)
+        u = u.numpy().astype(np.float64).reshape(B, T, dims.inputs)
         return u[0] if unbatched else u
 
 

@@ -5,11 +5,10 @@ the prior without the generative model, to tell their benefits apart."""
 
 from __future__ import annotations
 
-import numpy as np
 import torch
 from torch import nn
 
-from .common import PAPER_DIMS, Dims, InverseModel, LeanModel, aligned, mlp
+from .common import PAPER_DIMS, Dims, InverseModel, mlp
 
 
 class _Regression(InverseModel):
@@ -33,6 +32,11 @@ class InverseMLP(_Regression):
     def forward(self, window, prior=None):
         return self.net(self.condition(window, prior))
 
+    def act(self, condition, prior=None):
+        """``predict`` from the condition (B, c) it computes from the states."""
+        u = self.target_norm().unnormalize(self.net(condition))
+        return u + prior if self.prior else u
+
 
 class PhysicalMLP(InverseMLP):
     """u_t = u_phys(p_t+1) + MLP(x_t, x_{t+1}, u_phys): MLP-Physical."""
@@ -42,22 +46,6 @@ class PhysicalMLP(InverseMLP):
     def __init__(self, hidden: int = 256, layers: int = 3, *, dims: Dims = PAPER_DIMS):
         super().__init__(hidden, layers, dims=dims)
         self._add_prior()
-
-
-class LeanMLP(LeanModel):
-    """``InverseMLP.predict`` (and ``PhysicalMLP``'s) through the compiled step
-    (``kernels.network``, float32; same u to ~1e-6 N): one pass with no time or xi input."""
-
-    def __init__(self, model: InverseMLP):
-        super().__init__(model, model.net)
-        self.first = self.fold_features(*self.weights[0])
-        H = len(self.first[1])
-        self.no_time, self.no_xi = aligned(np.zeros((1, H))), aligned(np.zeros((self.inputs, H)))
-
-    def predict(self, window, prior=None):
-        """u (B, m) float64 for state windows (B, 2, d) [x_t, x_{t+1}] (and the prior u_phys (B, m))."""
-        xi = np.zeros((len(window), self.inputs), np.float32)
-        return self.run(window, prior, self.first, self.no_time, self.no_xi, xi)
 
 
 class InverseLSTM(_Regression):

@@ -6,11 +6,8 @@ from __future__ import annotations
 from contextlib import contextmanager
 from dataclasses import dataclass
 
-import numpy as np
 import torch
 from torch import nn
-
-from .kernels import network
 
 
 @contextmanager
@@ -140,13 +137,21 @@ class InverseModel(nn.Module):
 
     def features(self, window: torch.Tensor) -> torch.Tensor:
         """(B, context+1, d) states -> (B, context, 2d) normalised transition features."""
-        now, nxt = window[:, :-1], window[:, 1:]
+        return self._normalised_pair(window[:, :-1], window[:, 1:])
+
+    def _normalised_pair(self, now, nxt):
+        """[now, nxt - now] (..., 2d), each part normalised by its own normaliser."""
         return torch.cat([self.state_norm.normalize(now), self.delta_norm.normalize(nxt - now)], -1)
 
     def condition(self, window, prior=None) -> torch.Tensor:
         """What a per-step model conditions on: the last transition's features, and the
         normalised prior of a prior model, (B, 2d or 2d + m)."""
-        c = self.features(window[:, -2:])[:, 0]
+        return self.transition(window[:, -2], window[:, -1], prior)
+
+    def transition(self, x_t, x_next, prior=None) -> torch.Tensor:
+        """``condition`` of the transitions x_t -> x_next, (B, d) each: [x_t, x_next - x_t] and the
+        prior, each part normalised (``features`` of one transition)."""
+        c = self._normalised_pair(x_t, x_next)
         return torch.cat([c, self.prior_norm.normalize(prior)], -1) if self.prior else c
 
     def target_norm(self) -> Normalizer:
@@ -168,57 +173,3 @@ def mlp(sizes, activation=nn.SiLU) -> nn.Sequential:
         if i < len(sizes) - 2:
             layers.append(activation())
     return nn.Sequential(*layers)
-
-
-def aligned(a, dtype=np.float32) -> np.ndarray:
-    """A C-contiguous copy of ``a`` whose data starts on a 64-byte cache line, for the compiled
-    step: its vector loads then never straddle two lines (measured: a 4-step flow 25 % slower
-    when a matrix started 16 bytes off a line, as numpy's allocator may place it)."""
-    a = np.asarray(a, dtype)
-    raw = np.empty(a.nbytes + 64, np.uint8)
-    start = -raw.ctypes.data % 64
-    out = raw[start : start + a.nbytes].view(dtype).reshape(a.shape)
-    out[...] = a
-    return out
-
-
-class LeanModel:
-    """What the lean samplers share: the trained normalisers and the model's layers as arrays
-    for ``kernels.network``, for real-time steps without autograd or dispatch; ``weights``: the
-    linear layers as (W^T, b) float32, as the ONNX export reads them.
-
-    The state normalisers are folded into the first layer once (``fold_features``), so a
-    step reads [x_t, x_{t+1} - x_t] through one product; the difference is taken in float64,
-    because x_{t+1} and x_t agree in their leading digits."""
-
-    def __init__(self, model: InverseModel, net: nn.Sequential):
-        self.buffers = {name: b.detach().numpy() for name, b in model.named_buffers()}
-        self.weights = [
-            (np.ascontiguousarray(m.weight.detach().numpy().T), m.bias.detach().numpy())
-            for m in net
-            if isinstance(m, nn.Linear)
-        ]
-        self.prior, self.inputs = model.prior, model.dims.inputs
-        H = self.weights[0][0].shape[1]
-        self.hidden = aligned(np.reshape([w for w, _ in self.weights[1:-1]], (-1, H, H)))  # (L, H, H)
-        self.hidden_bias = aligned(np.reshape([b for _, b in self.weights[1:-1]], (-1, H)))  # (L, H)
-        self.out_weight, self.out_bias = aligned(self.weights[-1][0].T), self.weights[-1][1]  # (m, H), (m,)
-        target = "residual_norm" if self.prior else "action_norm"
-        self.u_std, self.u_mean = (self.buffers[f"{target}.{k}"] for k in ("std", "mean"))
-
-    def fold_features(self, w, b):
-        """(W, c), float64, such that [x_t, x_{t+1} - x_t] @ W[:2d] (+ u_phys @ W[2d:]) + c equals the
-        normalised features (and prior) times ``w`` (2d or 2d+m, H) plus ``b``."""
-        norms = ["state_norm", "delta_norm"] + (["prior_norm"] if self.prior else [])
-        mean, std = (np.concatenate([self.buffers[f"{n}.{k}"] for n in norms]).astype(float) for k in ("mean", "std"))
-        w = w.astype(np.float64) / std[:, None]
-        return aligned(w, np.float64), b.astype(np.float64) - mean @ w
-
-    def run(self, window, prior, first, time_weights, xi_weight, xi) -> np.ndarray:
-        """u (B, m) float64 through ``kernels.network`` for state windows (B, 2, d), the prior (B, m)
-        or None, the folded first layer ``first`` = (W, c), and the Euler steps' time weights
-        (n, H), xi weights (m, H) and starting xi (B, m) float32 (updated in place)."""
-        window = np.ascontiguousarray(window, dtype=np.float64)
-        prior = np.empty((len(window), 0)) if prior is None else np.ascontiguousarray(prior, dtype=np.float64)
-        layers = (self.hidden, self.hidden_bias, self.out_weight, self.out_bias, self.u_std, self.u_mean)
-        return network(window, prior, *first, time_weights, xi_weight, *layers, xi)

@@ -12,10 +12,10 @@ path instead, and crosses it in one network call.
 
 from __future__ import annotations
 
-import numpy as np
 import torch
+import torch.nn.functional as F
 
-from .common import PAPER_DIMS, Dims, InverseModel, LeanModel, aligned, mlp
+from .common import PAPER_DIMS, Dims, InverseModel, mlp
 from .forward import ForwardModel
 
 
@@ -76,13 +76,24 @@ class RectifiedFlow(InverseModel):
 
     def integrate(self, xi, condition, steps: int, start: float = 0.0):
         """The flow from xi at tau = ``start`` to tau = 1 in ``steps`` equal steps (normalised,
-        (B, m)); ``predict`` starts it from noise at 0."""
-        span = 1.0 - start
-        length = torch.full((len(xi),), span / steps, device=xi.device)
+        (B, m)); ``act`` starts it from noise at 0. The network is linear in its inputs up to its
+        first activation, so the condition's share of the first layer is computed once, not at
+        every step, and the time's share is a constant of each step; the Euler update xi + length v
+        is one product with the output layer."""
+        first, hidden, last = self.net[0], self.net[1:-1], self.net[-1]
+        m, n, length = self.dims.inputs, self.times, (1.0 - start) / steps
+        w_xi, w_time, w_condition = first.weight[:, :m], first.weight[:, m : m + n], first.weight[:, m + n :]
+        shared = F.linear(condition, w_condition, first.bias)  # (B, H)
         for k in range(steps):
-            tau = torch.full((len(xi),), start + span * k / steps, device=xi.device)
-            xi = xi + length[:, None] * self.mean_velocity(xi, tau, length, condition)
+            time = w_time @ torch.tensor(self.time_inputs(start + length * k, length))  # (H,)
+            h = hidden(torch.addmm(time, xi, w_xi.T) + shared)  # (B, H)
+            xi = torch.addmm(xi + length * last.bias, h, last.weight.T, alpha=length)  # xi + length v
         return xi
+
+    def time_inputs(self, tau: float, span: float) -> list[float]:
+        """The network's time inputs for a step of length ``span`` from ``tau``: tau (Euler's step
+        moves along the velocity at its start)."""
+        return [tau]
 
     def _sample_tau(self, n, device):
         if self.tau_sampling == "uniform":
@@ -110,8 +121,11 @@ class RectifiedFlow(InverseModel):
 
     def predict(self, window, prior=None, noise=None, steps: int | None = None):
         """u (B, m): Euler integration of the flow from ``noise`` (default: fresh N(0, I))."""
-        condition = self.condition(window, prior)
-        xi = torch.randn(len(window), self.dims.inputs, device=window.device) if noise is None else noise
+        return self.act(self.condition(window, prior), prior, noise, steps)
+
+    def act(self, condition, prior=None, noise=None, steps: int | None = None):
+        """``predict`` from the condition (B, c) it computes from the states."""
+        xi = torch.randn(len(condition), self.dims.inputs, device=condition.device) if noise is None else noise
         xi = self.integrate(xi, condition, self.steps if steps is None else steps)
         u = self.target_norm().unnormalize(xi)
         return u + prior if self.prior else u
@@ -135,6 +149,10 @@ class MeanFlow(RectifiedFlow):
     def mean_velocity(self, xi, tau, span, condition):
         return self.net(torch.cat([xi, tau[:, None], span[:, None], condition], -1))
 
+    def time_inputs(self, tau: float, span: float) -> list[float]:
+        """tau and the span the step crosses."""
+        return [tau, span]
+
     def compute_loss(self, window, u, prior=None):
         condition = self.condition(window, prior)
         xi = self.target_norm().normalize(u - prior if self.prior else u)
@@ -152,38 +170,3 @@ class MeanFlow(RectifiedFlow):
         if self.consistency:  # judged at the one-step estimate from the same point
             loss = loss + self._consistency(window, self.endpoint(xi_s, start, condition), prior)
         return loss
-
-
-class LeanFlow(LeanModel):
-    """The same sampler as ``RectifiedFlow.predict`` (and ``MeanFlow``'s) through the compiled
-    step (``kernels.network``), for low-latency planning.
-
-    Fuses what the Euler loop repeats: the condition's contribution to the first layer is
-    computed once per call, not once per step, and there is no autograd or dispatch
-    overhead. Computes in float32, the precision the model was trained in; gives the torch
-    model's u to about 1e-6 N."""
-
-    def __init__(self, model: RectifiedFlow):
-        super().__init__(model, model.net)
-        first, b = self.weights[0]
-        m = model.dims.inputs
-        self.w_xi, self.w_tau, self.w_condition = aligned(first[:m]), first[m], first[m + model.times :]
-        self.w_span = first[m + 1] if model.times == 2 else np.zeros_like(self.w_tau)  # MeanFlow's span h
-        self.first = self.fold_features(self.w_condition, b)
-        self.steps = model.steps
-        self._time_weights = {}  # Euler steps n -> the time's share of the first layer at each step
-
-    def predict(
-        self, window: np.ndarray, noise: np.ndarray | None, prior: np.ndarray | None = None, steps: int | None = None
-    ):
-        """u (B, m) float64 for state windows (B, 2, d) [x_t, x_{t+1}] and noise z (B, m); None: z = 0."""
-        n = self.steps if steps is None else steps
-        xi = np.zeros((len(window), self.inputs), np.float32) if noise is None else np.array(noise, np.float32)
-        return self.run(window, prior, self.first, self.time_weights(n), self.w_xi, xi)
-
-    def time_weights(self, n: int) -> np.ndarray:
-        """The time's share of the first layer at each of ``n`` Euler steps, (n, H) float32: tau = k / n
-        and a one-step flow's span 1 / n. Computed once per n."""
-        if n not in self._time_weights:
-            self._time_weights[n] = aligned([(k / n) * self.w_tau + self.w_span / n for k in range(n)])
-        return self._time_weights[n]

@@ -10,10 +10,7 @@ the table assume two inputs and refuse other rods.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
-from numba import njit
 from scipy.interpolate import RectBivariateSpline
 from scipy.optimize import least_squares
 from tqdm import tqdm
@@ -376,14 +373,14 @@ class StaticTable:
 
 
 class InverseGrid:
-    """``StaticTable.inverse`` tabulated once more, for RF-Physical's real-time step: trilinear
-    interpolation in coordinates where the inverse is smooth, the gravity-free arc's actuation
-    of the tip's chord (``arc_actuation``, closed form; (B, 2), N) and the chord's length |p|.
+    """``StaticTable.inverse`` tabulated once more, for RF-Physical's real-time step: its nodes
+    in coordinates where the inverse is smooth, the gravity-free arc's actuation of the tip's
+    chord (``arc_actuation``, closed form; (B, 2), N) and the chord's length |p|, and the cells
+    with a node at the table's edge +-u_range (``kink``: a kink no interpolant follows). The
+    step interpolates it (``control.step.GridPrior``), within 1e-3 N of the table on the paper
+    rod's states (tests/test_statics_grid.py; the table is within ~1e-6 N of ``inverse_static``).
 
-    Built from the table in seconds, once per rod, and cached by content. Within 1e-3 N of the
-    table on the paper rod's states (tests/test_statics_grid.py; the table is within ~1e-6 N
-    of ``inverse_static``). A point off the grid, or in a cell where the inverse meets the
-    table's edge +-u_range (a kink no interpolant follows), is solved by the table itself."""
+    Built from the table in seconds, once per rod, and cached by content."""
 
     def __init__(self, table: StaticTable, arcs: int = 97, lengths: int = 17):
         self.table, self.robot = table, table.robot
@@ -415,77 +412,6 @@ class InverseGrid:
         self.cell_strides = np.array([(arcs - 1) * (lengths - 1), lengths - 1, 1])
         self.corners = np.array(list(np.ndindex(2, 2, 2))) @ self.strides  # (8,) flat offsets of a cell's corners
         self.arc_scale = 2 * table.robot.bending_stiffness / table.robot.cable_radius / table.robot.length
-
-    def inverse(self, p) -> np.ndarray:
-        """u (B, 2) for tip positions p (B, 3), as ``StaticTable.inverse`` to 1e-3 N."""
-        u, exact = self._interpolate(p)
-        if exact.any():
-            u[exact] = self.table.inverse(p[exact])
-        return u
-
-    def solved_by_table(self, p) -> np.ndarray:
-        """(B,) bool: the points p (B, 3) that ``inverse`` hands to the table (off the grid, or in
-        a cell with a clipped corner)."""
-        return self._interpolate(p)[1]
-
-    def _interpolate(self, p):
-        p = np.ascontiguousarray(p, dtype=np.float64)
-        grid = (self.low, self.spacing, self.shape, self.strides, self.cell_strides, self.corners, self.kink, self.u)
-        return _trilinear(p, *grid, self.arc_scale)
-
-    def coordinates(self, p) -> np.ndarray:
-        """(arc actuation (2), chord length) (B, 3) of tip points p (B, 3): ``arc_actuation`` with the
-        heading's cosine and sine taken as y / lateral and z / lateral."""
-        return _coordinates(np.ascontiguousarray(p, dtype=np.float64), self.arc_scale)
-
-
-@njit(cache=True)
-def _trilinear(p, low, spacing, shape, strides, cell_strides, corners_at, kink, u, arc_scale):
-    """``InverseGrid``'s interpolation of tip points p (B, 3): u (B, 2) trilinear between the 8
-    corners of each point's cell (at flat offsets ``corners_at`` (8,), in ``np.ndindex(2, 2, 2)``
-    order, halved along each axis in turn: 8 -> 4 -> 2 -> 1), and (B,) bool: the points left to
-    the table (off the grid, or a cell with a clipped corner; their u is 0). Compiled, because a
-    controller's step reads one point at a time."""
-    B = p.shape[0]
-    out, exact = np.zeros((B, 2)), np.zeros(B, np.bool_)
-    s, cell, corners = np.empty(3), np.empty(3, np.int64), np.empty((8, 2))
-    coordinates = _coordinates(p, arc_scale)  # (B, 3)
-    for b in range(B):
-        on_grid = True
-        for a in range(3):
-            s[a] = (coordinates[b, a] - low[a]) / spacing[a]
-            on_grid &= 0 <= s[a] <= shape[a] - 1
-        if on_grid:
-            for a in range(3):
-                cell[a] = min(int(s[a]), shape[a] - 2)  # the top face joins the last cell
-            on_grid = not kink[cell[0] * cell_strides[0] + cell[1] * cell_strides[1] + cell[2] * cell_strides[2]]
-        if not on_grid:
-            exact[b] = True
-            continue
-        base = cell[0] * strides[0] + cell[1] * strides[1] + cell[2] * strides[2]
-        for c in range(8):
-            corners[c] = u[base + corners_at[c]]
-        half = 8
-        for a in range(3):
-            half >>= 1
-            f = s[a] - cell[a]
-            for c in range(half):
-                for o in range(2):
-                    corners[c, o] = corners[c, o] + f * (corners[c + half, o] - corners[c, o])
-        out[b] = corners[0]
-    return out, exact
-
-
-@njit(cache=True)
-def _coordinates(p, arc_scale):
-    """``InverseGrid.coordinates`` of tip points p (B, 3) float64, compiled for ``_trilinear``."""
-    out = np.empty((p.shape[0], 3))
-    for b in range(p.shape[0]):
-        x, y, z = p[b, 0], p[b, 1], p[b, 2]
-        lateral = math.hypot(y, z)
-        scale = arc_scale * math.atan2(lateral, x) / (lateral + 1e-300)  # on the axis y = z = 0: a = 0
-        out[b, 0], out[b, 1], out[b, 2] = scale * y, scale * z, math.hypot(x, lateral)
-    return out
 
 
 def _chord_point(robot: Robot, coordinates):
