@@ -207,6 +207,19 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="FILE.onnx",
         help="write Controller.step as one ONNX graph (inputs x_t, x_next; outputs u, outside) instead of commands",
     )
+    limits = sub.add_argument_group("limits", "with --onnx, what the graph may send")
+    limits.add_argument(
+        "--input-range",
+        metavar="LOW:HIGH,...",
+        help="each input's range in its units, one LOW:HIGH for all or one per input (write --input-range=-30:30 "
+        "when LOW is negative); default: the model's (the rod's actuator range, or the range the recorded inputs took)",
+    )
+    limits.add_argument(
+        "--safe-input",
+        metavar="U,...",
+        help="what the graph sends for a transition it refuses, one value for all or one per input, inside the "
+        "range (default: the range's centre)",
+    )
     recorded = sub.add_argument_group(
         "recorded runs",
         "with --onnx, the model of recorded runs (found as plan finds it): its delay, sample period and "
@@ -582,6 +595,8 @@ def _export(args):
             f"{', '.join(given)}: a model of recorded runs has no cables to command; "
             "export its step with --onnx FILE.onnx"
         )
+    if given := [f"--{o.replace('_', '-')}" for o in ("input_range", "safe_input") if getattr(args, o) is not None]:
+        raise ValueError(f"{', '.join(given)}: limits of the step's graph; they need --onnx FILE.onnx")
     if args.out is None:
         raise ValueError("--out FILE.csv is needed (or --onnx FILE.onnx for the model's step as one graph)")
     sim, reference, u = _planned_shape(args)
@@ -589,6 +604,27 @@ def _export(args):
     hardware.write_commands(args.out, commands, sim.dt)
     print(f"{args.model}: {len(commands)} commands for {commands.shape[1]} motors, {reference.name} ({args.robot})")
     print(args.out)
+
+
+def _numbers(text: str | None, flag: str) -> list[float] | None:
+    """Comma-separated numbers of ``flag``; None when it was not given."""
+    if text is None:
+        return None
+    try:
+        return [float(v) for v in text.split(",")]
+    except ValueError:
+        raise ValueError(f"{flag} takes numbers separated by commas; got {text!r}") from None
+
+
+def _input_range(text: str | None):
+    """(low, high) of --input-range LOW:HIGH[,LOW:HIGH...]; None when it was not given."""
+    if text is None:
+        return None
+    pairs = [part.split(":") for part in text.split(",")]
+    if any(len(pair) != 2 for pair in pairs):
+        raise ValueError(f"--input-range takes LOW:HIGH, one for all inputs or one per input; got {text!r}")
+    low, high = zip(*(_numbers(",".join(pair), "--input-range") for pair in pairs))
+    return list(low), list(high)
 
 
 def _export_onnx(args):
@@ -603,6 +639,8 @@ def _export_onnx(args):
     else:
         controller = control.load_controller(args.model, args.profile, ROBOTS[args.robot], args.gravity)
         made_for = f"{args.robot} rod, {args.gravity}"
+    if args.input_range is not None or args.safe_input is not None:
+        controller = controller.limited(_input_range(args.input_range), _numbers(args.safe_input, "--safe-input"))
     path = control.export_onnx(controller, args.onnx)
     dims, delay = controller.model.dims, controller.delay_steps
     print(

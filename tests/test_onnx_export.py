@@ -9,6 +9,7 @@ import contextlib
 import functools
 import io
 import json
+import re
 import warnings
 from dataclasses import replace
 
@@ -304,3 +305,37 @@ def test_a_model_of_recorded_runs_exports_with_its_delay(recorded, model, tmp_pa
     u, outside = run_graph(out, x_t, x_next)
     np.testing.assert_allclose(u, defined(controller, x_t, x_next)[0], rtol=0, atol=TOLERANCE)
     assert not outside.any()
+
+
+def test_the_cli_writes_the_limits_and_the_safe_input_it_is_given(tmp_path, capsys):
+    """A rig whose actuators must stay inside narrower limits than the data took: each input is
+    clipped to its own range, and a refused transition sends the safe input given."""
+    out = tmp_path / "rf.onnx"
+    cli.main(["export", "rf", "--onnx", str(out), "--input-range=-1:0.5,-2:3", "--safe-input", "0.25,-1"])
+    meta = metadata(out)
+    assert (meta["input_low"], meta["input_high"], meta["safe_input"]) == ([-1.0, -2.0], [0.5, 3.0], [0.25, -1.0])
+    x_t, x_next = transitions(rod_references(SIM_ROBOT, "vertical"), control.load_controller("rf"), n=2000)
+    x_next[::10, 0] = 9.0  # a tip 9 m out
+    u, outside = run_graph(out, x_t, x_next)
+    assert outside.sum() == 200 and (u[outside] == np.float32([0.25, -1.0])).all()
+    assert ((u[~outside] >= np.float32([-1, -2])) & (u[~outside] <= np.float32([0.5, 3]))).all()
+    assert (u[~outside] == np.float32([-1, -2])).any() and (u[~outside] == np.float32([0.5, 3])).any()  # reached
+
+
+@pytest.mark.parametrize(
+    "options, message",
+    [
+        (["--onnx", "{out}", "--safe-input", "9"], "safe_input must be one value per input inside"),
+        (["--onnx", "{out}", "--input-range=1:0"], r"u_range must be \(low, high\) with low <= high"),
+        (["--onnx", "{out}", "--input-range", "1"], "--input-range takes LOW:HIGH"),
+        (["--onnx", "{out}", "--safe-input", "a"], "--safe-input takes numbers separated by commas"),
+        (["--out", "{out}", "--safe-input", "0"], "--safe-input: limits of the step's graph; they need --onnx"),
+    ],
+)
+def test_limits_that_do_not_fit_are_refused_by_flag(options, message, tmp_path, capsys):
+    argv = ["export", "rf", *(o.format(out=tmp_path / "rf.onnx") for o in options)]
+    with pytest.raises(SystemExit) as stop:
+        cli.main(argv)
+    error = capsys.readouterr().err
+    assert stop.value.code == 2 and re.search(message, error) and "usage:" not in error
+    assert not list(tmp_path.iterdir())

@@ -3,6 +3,7 @@ run the plan in the simulator from rest, and score it."""
 
 from __future__ import annotations
 
+import copy
 import warnings
 from pathlib import Path
 
@@ -98,28 +99,7 @@ class Controller:
         self.u_limit, self.observe, self.workspace_margin = float(u_limit), observe, workspace_margin
         self.delay_steps, self.tip_columns = delay_steps, tuple(tip_columns)
         self.dt = dt if dt is not None else DT if robot is not None else None
-        m = model.dims.inputs
-        self._low, self._high = (
-            np.full(m, -self.u_limit),
-            np.full(m, self.u_limit),
-        )  # (m,) each: the box u is clipped to
-        self._range = f"the actuator range +-{self.u_limit:g} N"
-        if u_range is not None:
-            low, high = (np.broadcast_to(np.asarray(b, np.float64), (m,)).copy() for b in u_range)
-            if not (np.isfinite(low).all() and np.isfinite(high).all() and (low <= high).all()):
-                raise ValueError(f"u_range must be (low, high) with low <= high for each input; got {u_range!r}")
-            self._low, self._high, self.u_limit = low, high, float(np.abs([low, high]).max())
-            symmetric = (low == -high).all() and (high == high[0]).all()
-            bounds = [f"{a:g} to {b:g}" for a, b in zip(low, high)]
-            self._range = f"the input range +-{high[0]:g}" if symmetric else f"the input ranges {', '.join(bounds)}"
-        finite = np.isfinite(self._low) & np.isfinite(self._high)
-        default = np.where(finite, (self._low + self._high) / 2, np.clip(0.0, self._low, self._high))
-        self.safe_input = default if safe_input is None else np.asarray(safe_input, np.float64)
-        if (
-            self.safe_input.shape != (m,)
-            or not ((self._low <= self.safe_input) & (self.safe_input <= self._high)).all()
-        ):
-            raise ValueError(f"safe_input must be one value per input inside {self._range}; got {safe_input!r}")
+        self._limit(u_range, safe_input)
         self.generative = isinstance(model, RectifiedFlow)
         self.statics = Simulator(robot, gravity).static_table() if model.needs_statics else None
         self.statics_grid = InverseGrid(self.statics) if self.statics is not None else None  # step's prior
@@ -133,6 +113,34 @@ class Controller:
     def model(self, model: torch.nn.Module):
         """The inverse model (in eval mode); another model makes its step again when next used."""
         self._model, self._step_module, self._graph = model.eval(), None, None
+
+    def _limit(self, u_range, safe_input):
+        """Set the box u is clipped to, (low, high) (m,) each (None: +-``u_limit``), and the safe input."""
+        m = self.model.dims.inputs
+        self._low, self._high = np.full(m, -self.u_limit), np.full(m, self.u_limit)  # (m,) each
+        self._range = f"the actuator range +-{self.u_limit:g} N"
+        if u_range is not None:
+            low, high = (np.broadcast_to(np.asarray(b, np.float64), (m,)).copy() for b in u_range)
+            if not (np.isfinite(low).all() and np.isfinite(high).all() and (low <= high).all()):
+                raise ValueError(f"u_range must be (low, high) with low <= high for each input; got {u_range!r}")
+            self._low, self._high, self.u_limit = low, high, float(np.abs([low, high]).max())
+            symmetric = (low == -high).all() and (high == high[0]).all()
+            bounds = [f"{a:g} to {b:g}" for a, b in zip(low, high)]
+            self._range = f"the input range +-{high[0]:g}" if symmetric else f"the input ranges {', '.join(bounds)}"
+        finite = np.isfinite(self._low) & np.isfinite(self._high)
+        default = np.where(finite, (self._low + self._high) / 2, np.clip(0.0, self._low, self._high))
+        safe = default if safe_input is None else np.broadcast_to(np.asarray(safe_input, np.float64), (m,)).copy()
+        if not ((self._low <= safe) & (safe <= self._high)).all():
+            raise ValueError(f"safe_input must be one value per input inside {self._range}; got {safe_input!r}")
+        self.safe_input, self._step_module, self._graph = safe, None, None
+
+    def limited(self, u_range=None, safe_input=None) -> Controller:
+        """This controller with another input box ``u_range`` (low, high), each a number or one per
+        input (None: the same), and another safe input (None: the new box's default); for a rig whose
+        actuators must stay inside narrower limits than the data took."""
+        other = copy.copy(self)
+        other._limit((self._low, self._high) if u_range is None else u_range, safe_input)
+        return other
 
     @property
     def step_module(self) -> Step:
