@@ -103,11 +103,15 @@ class Controller:
         self.generative = isinstance(model, RectifiedFlow)
         self.statics = Simulator(robot, gravity).static_table() if model.needs_statics else None
         self.statics_grid = InverseGrid(self.statics) if self.statics is not None else None  # step's prior
-        self.has_step = model.context == 1  # models of one transition; those of a window of past states only plan
 
     @property
     def model(self) -> torch.nn.Module:
         return self._model
+
+    @property
+    def has_step(self) -> bool:
+        """Whether the model reads one transition (a window of past states only plans)."""
+        return self.model.context == 1
 
     @model.setter
     def model(self, model: torch.nn.Module):
@@ -182,8 +186,9 @@ class Controller:
         actuation (a robot's program sends the graph's safe input instead). RF-Physical's prior
         comes from the inverse-statics grid (``InverseGrid``, within 1e-3 N of ``plan``'s table).
         Models that read a window of past states (LSTM, Transformer) have no step: ``plan`` them."""
-        bound, d = self.bound_graph, self.model.dims.state
+        d = self.model.dims.state
         if clip and type(x_t) is type(x_next) is np.ndarray and x_t.shape == x_next.shape == (d,):  # real time
+            bound = self.bound_graph
             bound.x_t[0], bound.x_next[0] = x_t, x_next  # float32, as the graph reads them
             bound.run()
             if not bound.outside[0]:
@@ -191,15 +196,11 @@ class Controller:
                 if bound.saturated():
                     self._warn_clipped(u, "stepped")
                 return u
-        x, unbatched = as_real_array(x_t, "x_t", (None, d), allow_unbatched=True)
-        x_next, _ = as_real_array(x_next, "x_next", x.shape[1:] if unbatched else x.shape)
-        x, x_next = np.atleast_2d(x), np.atleast_2d(x_next)
+        x, x_next, unbatched = self._pair(x_t, x_next)
         if clip:
-            u, outside = bound.session.run(None, {"x_t": x.astype(np.float32), "x_next": x_next.astype(np.float32)})
+            u, outside = self.bound_graph.session.run(None, {"x_t": x, "x_next": x_next})
         else:
-            with torch.inference_mode(), one_thread():
-                pair = (torch.as_tensor(a, dtype=torch.float32) for a in (x, x_next))
-                u, outside = (a.numpy() for a in self.step_module.unclipped(*pair))
+            u, outside = self._unclipped(x, x_next)
         if outside.any():
             self._refuse(x, x_next, outside, unbatched)
         u = u.astype(np.float64)
@@ -227,20 +228,30 @@ class Controller:
             raise ValueError(f"n must be a positive integer; got {n!r}")
         if not self.generative:
             raise ValueError(f"{self.name} is a regression model: it has no noise to sample")
-        d, m = self.model.dims.state, self.model.dims.inputs
-        x, unbatched = as_real_array(x_t, "x_t", (None, d), allow_unbatched=True)
-        x_next, _ = as_real_array(x_next, "x_next", x.shape[1:] if unbatched else x.shape)
-        x, x_next = (np.tile(np.atleast_2d(a), (n, 1)) for a in (x, x_next))  # (n B, d) each
+        m = self.model.dims.inputs
+        x, x_next, unbatched = self._pair(x_t, x_next)
+        x, x_next = np.tile(x, (n, 1)), np.tile(x_next, (n, 1))  # (n B, d) each
         rng = self._rng if seed is None else np.random.default_rng(seed)
         noise = torch.as_tensor(rng.standard_normal((len(x), m)), dtype=torch.float32)
-        with torch.inference_mode(), one_thread():
-            u, outside = self.step_module.unclipped(
-                *(torch.as_tensor(a, dtype=torch.float32) for a in (x, x_next)), noise=noise
-            )
+        u, outside = self._unclipped(x, x_next, noise=noise)
         if outside.any():
-            self._refuse(x, x_next, outside.numpy(), False)
-        u = u.numpy().astype(np.float64).reshape(n, -1, m)
+            self._refuse(x, x_next, outside, False)
+        u = u.astype(np.float64).reshape(n, -1, m)
         return u[:, 0] if unbatched else u
+
+    def _pair(self, x_t, x_next) -> tuple[np.ndarray, np.ndarray, bool]:
+        """``step``'s arguments checked and as the step reads them, (B, d) float32 each, and whether
+        they were one transition."""
+        d = self.model.dims.state
+        x, unbatched = as_real_array(x_t, "x_t", (None, d), allow_unbatched=True)
+        x_next, _ = as_real_array(x_next, "x_next", x.shape[1:] if unbatched else x.shape)
+        return np.atleast_2d(x).astype(np.float32), np.atleast_2d(x_next).astype(np.float32), unbatched
+
+    def _unclipped(self, x_t, x_next, **options) -> tuple[np.ndarray, np.ndarray]:
+        """(u (B, m), outside (B,)) of ``step_module.unclipped`` in torch for states (B, d) float32."""
+        with torch.inference_mode(), one_thread():
+            u, outside = self.step_module.unclipped(torch.as_tensor(x_t), torch.as_tensor(x_next), **options)
+        return u.numpy(), outside.numpy()
 
     def _clip(self, u, what: str) -> np.ndarray:
         """u (..., m) clipped to the input range, with a ``SaturationWarning`` that counts the

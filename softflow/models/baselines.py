@@ -17,8 +17,7 @@ class _Regression(InverseModel):
         return torch.mean((self.forward(window, prior) - self.target_norm().normalize(target)) ** 2)
 
     def predict(self, window, prior=None):
-        u = self.target_norm().unnormalize(self.forward(window, prior))
-        return u + prior if self.prior else u
+        return self.actuation(self.forward(window, prior), prior)
 
 
 class InverseMLP(_Regression):
@@ -34,8 +33,7 @@ class InverseMLP(_Regression):
 
     def act(self, condition, prior=None):
         """``predict`` from the condition (B, c) it computes from the states."""
-        u = self.target_norm().unnormalize(self.net(condition))
-        return u + prior if self.prior else u
+        return self.actuation(self.net(condition), prior)
 
 
 class PhysicalMLP(InverseMLP):

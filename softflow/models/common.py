@@ -158,6 +158,11 @@ class InverseModel(nn.Module):
         """The normaliser of what the model outputs: u, or the residual u - u_phys."""
         return self.residual_norm if self.prior else self.action_norm
 
+    def actuation(self, normalised, prior=None) -> torch.Tensor:
+        """u (B, m) of the model's normalised output (B, m): unnormalised, plus the prior of a prior model."""
+        u = self.target_norm().unnormalize(normalised)
+        return u + prior if self.prior else u
+
     def compute_loss(self, window: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
         raise NotImplementedError
 

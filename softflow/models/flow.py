@@ -114,9 +114,7 @@ class RectifiedFlow(InverseModel):
 
     def _consistency(self, window, xi_hat, prior):
         """RF-FWD's term: lambda ||f_phi(x_t, u_hat) - x_{t+1}||^2 (normalised) at the estimate xi_hat."""
-        u_hat = self.target_norm().unnormalize(xi_hat)
-        if self.prior:
-            u_hat = u_hat + prior
+        u_hat = self.actuation(xi_hat, prior)
         return self.consistency * torch.mean(self.forward_model.residual(window, u_hat) ** 2)
 
     def predict(self, window, prior=None, noise=None, steps: int | None = None):
@@ -126,9 +124,7 @@ class RectifiedFlow(InverseModel):
     def act(self, condition, prior=None, noise=None, steps: int | None = None):
         """``predict`` from the condition (B, c) it computes from the states."""
         xi = torch.randn(len(condition), self.dims.inputs, device=condition.device) if noise is None else noise
-        xi = self.integrate(xi, condition, self.steps if steps is None else steps)
-        u = self.target_norm().unnormalize(xi)
-        return u + prior if self.prior else u
+        return self.actuation(self.integrate(xi, condition, self.steps if steps is None else steps), prior)
 
 
 class MeanFlow(RectifiedFlow):
