@@ -13,7 +13,7 @@ PROFILE ?= paper
 BENCH_PROFILE ?= ci
 NOTEBOOKS := $(sort $(wildcard notebooks/[0-9]*.ipynb))
 
-.PHONY: venv test lint reproduce readme study bench bench-setup bench-reproduce portability lab clean lock strip
+.PHONY: venv test lint reproduce readme loop-parts study bench bench-setup bench-reproduce portability lab clean lock strip
 
 venv: $(STAMP)
 
@@ -66,8 +66,8 @@ test: $(STAMP) lint
 # Style and architecture: ruff (lint and format, pyproject.toml) and the import contract
 # (layers point one way; models never import the rod; control never imports training).
 lint: $(STAMP)
-	$(VENV)/bin/ruff check softflow tests benchmarks notebooks
-	$(VENV)/bin/ruff format --check softflow tests benchmarks
+	$(VENV)/bin/ruff check softflow tests benchmarks notebooks examples
+	$(VENV)/bin/ruff format --check softflow tests benchmarks examples
 	$(VENV)/bin/lint-imports
 
 # The committed notebooks are their ci run without its run record. Regenerate one with
@@ -90,6 +90,10 @@ reproduce: $(STAMP)
 # The README's result block, from the shipped study rows (softflow/report/templates/result.md.j2).
 readme: $(STAMP)
 	$(PY) -m softflow.report.readme
+
+# The loop's filter and predictors on the ASL trunk's held-out run (about a minute)
+loop-parts: $(STAMP)
+	$(PY) -m softflow.studies.trunk_loop
 
 # Every cell of the studies, recomputed (not read from figures/sweeps/) and cached in
 # data/sweeps/, so an interrupted run resumes; SCHEDULER_FILE=s.json runs them on your cluster.

@@ -30,6 +30,7 @@ import numpy as np
 import pandas as pd
 
 from softflow import control, data, hardware, training
+from softflow.control.loop import WATCHDOG
 from softflow.data import recordings
 from softflow.models.checkpoints import checkpoint_path
 from softflow.models.registry import CONTROLLERS, MODELS
@@ -207,6 +208,18 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="FILE.onnx",
         help="write Controller.step as one ONNX graph (inputs x_t, x_next; outputs u, outside) instead of commands",
     )
+    sub.add_argument(
+        "--loop",
+        action="store_true",
+        help="with --onnx and --recordings, the whole period of the loop as one graph: estimate, delay "
+        "compensation, step and safety, its memory explicit (examples/run_loop.py runs it)",
+    )
+    sub.add_argument(
+        "--watchdog",
+        type=float,
+        metavar="S",
+        help=f"with --loop, how long a point may go without a fresh frame before the safe input (default {WATCHDOG} s)",
+    )
     limits = sub.add_argument_group("limits", "with --onnx, what the graph may send")
     limits.add_argument(
         "--input-range",
@@ -218,7 +231,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--safe-input",
         metavar="U,...",
         help="what the graph sends for a transition it refuses, one value for all or one per input, inside the "
-        "range (default: the range's centre)",
+        "range (default: the range's centre; with --loop, the recorded inputs' median)",
     )
     recorded = sub.add_argument_group(
         "recorded runs",
@@ -588,6 +601,8 @@ def _plan_recorded(args):
 
 
 def _export(args):
+    if args.loop or args.watchdog is not None:
+        return _export_loop(args)
     if args.onnx is not None:
         return _export_onnx(args)
     if given := ["--recordings"] * (args.recordings is not None) + _recording_flags(args):
@@ -647,6 +662,36 @@ def _export_onnx(args):
         f"{args.model} ({made_for}): Controller.step as one ONNX graph, x_t and x_next ({dims.state} numbers "
         f"each) -> u ({dims.inputs} inputs) and outside"
         + (f"; the rig moves {delay} periods after an input is sent (metadata delay_steps)" if delay else "")
+    )
+    print(path)
+
+
+def _export_loop(args):
+    """A model of recorded runs' whole period as one graph, with the recordings' limits unless given."""
+    if not args.loop:
+        raise ValueError("--watchdog is an option of the loop's graph; it needs --loop")
+    if args.onnx is None or args.recordings is None:
+        raise ValueError(
+            "--loop writes the period of a model of recorded runs: it needs --onnx FILE.onnx and --recordings DIR"
+        )
+    if given := [f"--{option}" for option in ("shape", "size", "out") if getattr(args, option) is not None]:
+        raise ValueError(f"{', '.join(given)}: options of a command file; --loop writes the loop's graph alone")
+    controller, dataset = _recorded_controller(args)
+    safe = _numbers(args.safe_input, "--safe-input")
+    m = dataset.dims.inputs
+    options = dict(
+        u_range=_input_range(args.input_range), safe_input=None if safe is None else np.broadcast_to(safe, (m,))
+    )
+    if args.watchdog is not None:
+        options["watchdog"] = args.watchdog
+    loop = control.loop_of(controller, dataset, **options)
+    path = control.export_loop(loop, args.onnx)
+    period = loop.period
+    print(
+        f"{args.model} (recordings {args.recordings}): the loop's period as one ONNX graph, every "
+        f"{dataset.dt:g} s: a frame of {', '.join(dataset.tip_columns)} and the reference {period.delay + 1} periods "
+        f"ahead -> u ({', '.join(loop.input_columns)}); delay {period.delay} periods, safe input after "
+        f"{period.watchdog} periods without a fresh frame"
     )
     print(path)
 

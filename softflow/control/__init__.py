@@ -1,6 +1,7 @@
 """Control: open-loop planning (``Controller``), its real-time step as an ONNX graph
-(``export_onnx``), the metrics, the ILC floor, tip-state estimation and the closed loop. Imports
-models, data and the rod, never training.
+(``export_onnx``), the loop of a model of recorded runs (``loop_of``; ``export_loop``), the
+metrics, the ILC floor, tip-state estimation and the twin's closed loop. Imports models, data
+and the rod, never training.
 """
 
 from softflow.lazy import facade
@@ -19,7 +20,8 @@ EXPORTS = {
         "evaluate_many",
         "score",
     ],
-    "onnx_export": ["export_onnx"],
+    "onnx_export": ["export_onnx", "export_loop"],
+    "loop": ["Loop", "loop_of"],
 }
 SUBMODULES = ["metrics", "floor", "estimation", "closed_loop"]
 __getattr__, __dir__, __all__ = facade(__name__, EXPORTS, SUBMODULES)

@@ -1,7 +1,7 @@
-"""A controller's real-time step as one ONNX graph, for a robot's controller outside Python
-(onnxruntime's C, C++, C# or Python API): ``Controller.step_module`` exported by torch's exporter
-(``control.step.graph``), the graph ``Controller.step`` itself runs, with metadata that say what
-it was made from."""
+"""A controller's real-time step, or a whole period of the loop of a model of recorded runs, as
+one ONNX graph for a robot's controller outside Python (onnxruntime's C, C++, C# or Python API):
+``Controller.step_module`` (the graph ``Controller.step`` itself runs) or ``loop.Period``
+exported by torch's exporter, with metadata that say what it was made from."""
 
 from __future__ import annotations
 
@@ -12,6 +12,7 @@ from pathlib import Path
 import onnx
 from onnx import helper
 
+from softflow.control.loop import MEMORY, Loop
 from softflow.control.planning import Controller
 from softflow.control.step import graph
 from softflow.store import atomic_write
@@ -27,6 +28,44 @@ def export_onnx(controller: Controller, path) -> Path:
     is the safe input (``safe_input`` in the metadata), never a clipped command. A flow starts
     from z = 0, as ``step`` does. The metadata (``metadata_props``; numbers and lists as JSON)
     say what the graph was made from: ``_metadata``."""
+    path = _checked(controller, path)
+    return _write(graph(controller.step_module), controller, "step", _metadata(controller), path)
+
+
+def export_loop(loop: Loop, path) -> Path:
+    """Write ``loop``'s period (``control.loop_of``) as one ONNX graph at ``path`` (replaced);
+    returns the path. A robot's program calls it once per
+    period with the newest frame of the observed columns (``frame``, (1, k) float64, NaN where
+    none came), the reference state wanted delay + 1 periods ahead (``reference``, (1, d)
+    float32) and the memory the last call returned (inputs ``x``, ``P``, ``last_frame``,
+    ``stale``, ``sent``; outputs ``next_x``, ...; the first call gets ``start_memory`` from the
+    metadata), and sends ``u`` (1, m) float32; ``holding`` says it is the safe input. The
+    metadata are the step's (``export_onnx``) and the loop's: the period, the observed and input
+    columns, each input's rate limit, the watchdog and the start memory."""
+    if not isinstance(loop, Loop):
+        raise ValueError(f"expected a Loop (softflow.control.loop_of); got {type(loop).__name__}")
+    controller, period = loop.controller, loop.period
+    path = _checked(controller, path)
+    start = {
+        name: dict(
+            dtype=str(value.dtype).removeprefix("torch."), shape=list(value.shape), values=value.flatten().tolist()
+        )
+        for name, value in period.memory().items()
+    }
+    values = _metadata(controller) | {
+        key: json.dumps(value)
+        for key, value in dict(
+            input_columns=list(loop.input_columns),
+            input_rate=period.rate.tolist(),
+            watchdog_periods=period.watchdog,
+            memory=list(MEMORY),
+            start_memory=start,
+        ).items()
+    }
+    return _write(loop.graph(), controller, "loop", values, path)
+
+
+def _checked(controller: Controller, path) -> Path:
     if not isinstance(controller, Controller):
         raise ValueError(f"expected a Controller (softflow.load_controller); got {type(controller).__name__}")
     if not controller.has_step:
@@ -37,11 +76,15 @@ def export_onnx(controller: Controller, path) -> Path:
     path = Path(path)
     if path.is_dir():
         raise ValueError(f"{path} is a directory; expected a file to write (e.g. {controller.name}.onnx)")
-    model = graph(controller.step_module)
+    return path
+
+
+def _write(model: onnx.ModelProto, controller: Controller, what: str, metadata: dict, path: Path) -> Path:
     model.producer_name, model.producer_version = "softflow", _version()
-    model.doc_string = f"softflow {controller.name}: Controller.step as one graph"
-    model.graph.name = f"softflow_{controller.name.replace('-', '_')}_step"
-    helper.set_model_props(model, _metadata(controller))
+    made = "Controller.step" if what == "step" else "a loop's period"
+    model.doc_string = f"softflow {controller.name}: {made} as one graph"
+    model.graph.name = f"softflow_{controller.name.replace('-', '_')}_{what}"
+    helper.set_model_props(model, metadata)
     onnx.checker.check_model(model, full_check=True)
     with atomic_write(path) as f:
         f.write(model.SerializeToString())

@@ -136,8 +136,14 @@ def graph(step: Step) -> onnx.ModelProto:
     float32, outputs ``u`` (B, m) float32 and ``outside`` (B,) bool."""
     d = step.model.dims.state
     example = (torch.zeros(2, d), torch.full((2, d), 0.1))  # two distinct inputs: the exporter keeps both
+    return export_graph(step, example, ["x_t", "x_next"], ["u", "outside"])
+
+
+def export_graph(module: nn.Module, example: tuple, input_names: list, output_names: list) -> onnx.ModelProto:
+    """``module`` exported by torch's exporter (opset ``OPSET``) with the batch, the first axis of
+    every input, left free; the exporter's notes on what it could not register or fold are quiet."""
     batch = torch.export.Dim("batch", min=1)
-    quiet = [logging.getLogger(name) for name in ("torch.onnx", "onnxscript")]  # what it could not register or fold
+    quiet = [logging.getLogger(name) for name in ("torch.onnx", "onnxscript")]
     levels = [logger.level for logger in quiet]
     for logger in quiet:
         logger.setLevel(logging.ERROR)
@@ -145,13 +151,13 @@ def graph(step: Step) -> onnx.ModelProto:
         with warnings.catch_warnings(), contextlib.redirect_stdout(io.StringIO()):
             warnings.simplefilter("ignore")
             program = torch.onnx.export(
-                step,
+                module,
                 example,
                 dynamo=True,
                 opset_version=OPSET,
-                input_names=["x_t", "x_next"],
-                output_names=["u", "outside"],
-                dynamic_shapes=({0: batch}, {0: batch}),
+                input_names=input_names,
+                output_names=output_names,
+                dynamic_shapes=tuple({0: batch} for _ in example),
                 verbose=False,
             )
     finally:

@@ -41,7 +41,8 @@ class Dataset:
     (RF-Physical's prior is that rod's statics; None for data no simulator made). Models take
     their sizes from it (``dims``): m = 2 and d = 6 for the paper's rods. Recorded data pair each
     (x_t, x_{t+1}) with the input sent ``delay_steps`` periods earlier (the rig's input-to-motion
-    delay; 0 for simulated data), and keep the per-recording estimates it came from (``delays``, s)."""
+    delay; 0 for simulated data), and keep the per-recording estimates it came from (``delays``, s)
+    and the offline smoother's levels (``levels``, the recordings' median), which the loop's filter uses."""
 
     u: np.ndarray
     states: np.ndarray
@@ -58,6 +59,7 @@ class Dataset:
     tip_columns: tuple[str, ...] = ()
     split_files: dict | None = None  # recorded data: {"train" | "val" | "test": file names}
     resting_files: tuple[str, ...] = ()  # recorded data: files left out, their inputs never changing
+    levels: tuple[np.ndarray, np.ndarray] | None = None  # recorded data: the smoother's (noise, jerk) per tip column
 
     def __post_init__(self):
         if self.u.ndim != 3 or self.states.ndim != 3 or self.states.shape[:2] != (len(self.u), self.u.shape[1] + 1):

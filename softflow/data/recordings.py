@@ -790,6 +790,8 @@ def load_dataset(
             tip_columns=np.array(tables[0].tip_columns),
             **{f"{name}_files": _names([tables[i].source for i in chosen]) for name, chosen in zip(SPLITS, splits)},
             resting_files=_names(resting),
+            noise=np.median([run.noise for run in runs], 0),  # (k,) the smoother's levels, for the loop's filter
+            jerk=np.median([run.jerk for run in runs], 0),
         )
 
     if data_dir is None:
@@ -964,6 +966,7 @@ def _dataset(arrays: dict, key: str) -> Dataset | None:
             tip_columns=tuple(str(name) for name in arrays["tip_columns"]),
             split_files={name: tuple(str(f) for f in arrays[f"{name}_files"]) for name in SPLITS},
             resting_files=tuple(str(f) for f in arrays["resting_files"]),
+            levels=(np.asarray(arrays["noise"], float), np.asarray(arrays["jerk"], float)),
         )
     except (KeyError, TypeError, ValueError):
         return None

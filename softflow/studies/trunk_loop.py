@@ -1,0 +1,87 @@
+"""What the loop's parts (``control.loop``) do on the ASL trunk's held-out run, random_2, with
+every model part fitted on the training run, random_1: how far the loop's filter (the offline
+smoother's forward pass) lies from the smoother's states, how its estimate drifts while a point
+goes without fresh frames, and how far each predictor's state d periods ahead lies from the
+smoother's. ``make loop-parts`` writes the tables (``figures/bench/loop_parts_trunk.csv``)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import torch
+
+from softflow.control.loop import Estimator, Predictor, fresh_frames, point_matrix
+from softflow.data import recordings
+from softflow.data.dataset import Dataset
+from softflow.machine import description
+from softflow.studies.trunk import DT, MAX_GAP, OBSERVATIONS, TRAINING_RUN, _file
+
+HELD_OUT = "random_2"
+HORIZONS = (0, 5, 10, 15, 20, 22, 25, 30)  # periods
+STALE = tuple(range(8))  # periods since a point's last fresh frame
+SETTLE = 100  # periods left out at the start of the run, while the filter settles
+
+
+def filtered(estimator: Estimator, same_point, frames: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The loop's estimate (T, 2k) over frames (T, k), as ``loop.Period`` makes it, and each
+    column's periods since its last fresh frame (T, k)."""
+    k = frames.shape[1]
+    x, P = torch.full((1, k, 3), torch.nan, dtype=torch.float64), torch.zeros(1, k, 3, 3, dtype=torch.float64)
+    last, stale = torch.full((1, k), torch.nan, dtype=torch.float64), torch.zeros(1, k, dtype=torch.int64)
+    states, staleness = [], []
+    with torch.no_grad():
+        for frame in torch.as_tensor(frames)[:, None]:
+            fresh = fresh_frames(frame, last, same_point)
+            x, P = estimator(frame, x, P, fresh)
+            stale = torch.where(fresh, 0, stale + 1)
+            last = torch.where(torch.isfinite(frame), frame, last)
+            states.append(torch.cat([x[0, :, 0], x[0, :, 1]]).numpy())
+            staleness.append(stale[0].numpy())
+    return np.array(states), np.array(staleness)
+
+
+def measure(observation: str) -> pd.DataFrame:
+    """The tables for one observation ("tip" or "disks"): rows of (table, what, periods, value, unit)."""
+    columns = list(OBSERVATIONS[observation])
+    train = recordings.read(_file(TRAINING_RUN), tip=columns, max_gap=MAX_GAP)
+    test = recordings.read(_file(HELD_OUT), tip=columns, max_gap=MAX_GAP, delay=train.delay)
+    k, d = len(columns), train.delay_steps
+    u, X = train.pairs()
+    data = Dataset(u[None], X[None], np.array([0]), np.array([0]), np.array([0]), robot=None, gravity=None, dt=DT)
+    frames = pd.read_csv(_file(HELD_OUT))[columns].to_numpy()[: len(test.states)]  # as the tracker gave them
+    estimator = Estimator(DT, train.noise, train.jerk)
+    estimate, staleness = filtered(estimator, point_matrix(recordings.tip_points(columns), k), frames)
+    smoothed, inputs = test.states, test.inputs  # (T+1, 2k), (T, m)
+    rows = []
+    mm = lambda e: float(1e3 * np.sqrt(np.mean(e**2)))  # noqa: E731
+    later = slice(SETTLE, None)
+    rows += [
+        ("filter", "position", 0, mm(estimate[later, :k] - smoothed[later, :k]), "mm"),
+        ("filter", "velocity", 0, mm(estimate[later, k:] - smoothed[later, k:]), "mm/s"),
+        ("filter", "velocity of the smoother", 0, mm(smoothed[later, k:]), "mm/s"),
+    ]
+    error = (estimate[later, :k] - smoothed[later, :k])[staleness[later] < max(STALE) + 1]
+    stale = staleness[later][staleness[later] < max(STALE) + 1]
+    rows += [("drift", "position", s, mm(error[stale == s]), "mm") for s in STALE if (stale == s).any()]
+    starts = np.arange(max(SETTLE, d), len(inputs) - max(HORIZONS))  # (N,) periods t with x_{t+h} known
+    now = estimate[starts]
+    for h in HORIZONS:
+        truth = smoothed[starts + h, :k]
+        flight = np.stack([inputs[starts + i - d] for i in range(h)], 1) if h else np.zeros((len(starts), 0, 6))
+        linear = Predictor.fit(data, h)(torch.as_tensor(now), torch.as_tensor(flight)).numpy()
+        rows += [
+            ("predictor", "hold", h, mm(now[:, :k] - truth), "mm"),
+            ("predictor", "constant velocity", h, mm(now[:, :k] + h * DT * now[:, k:] - truth), "mm"),
+            ("predictor", "linear forward model", h, mm(linear[:, :k] - truth), "mm"),
+        ]
+    table = pd.DataFrame(rows, columns=["table", "what", "periods", "value", "unit"])
+    return table.assign(observation=observation, delay_steps=d, machine=description())
+
+
+def main(out="figures/bench/loop_parts_trunk.csv") -> None:
+    pd.concat([measure(observation) for observation in OBSERVATIONS]).to_csv(out, index=False, float_format="%.4g")
+    print(out)
+
+
+if __name__ == "__main__":
+    main()
