@@ -215,6 +215,13 @@ def build_parser() -> argparse.ArgumentParser:
         "compensation, step and safety, its memory explicit (examples/run_loop.py runs it)",
     )
     sub.add_argument(
+        "--rest",
+        type=Path,
+        metavar="FILE",
+        help="with --loop, a rest run of today's session: frames are moved by its offset from the recordings' own "
+        "rest run (a moved rest pose, a re-calibrated camera)",
+    )
+    sub.add_argument(
         "--watchdog",
         type=float,
         metavar="S",
@@ -601,7 +608,7 @@ def _plan_recorded(args):
 
 
 def _export(args):
-    if args.loop or args.watchdog is not None:
+    if args.loop or args.watchdog is not None or args.rest is not None:
         return _export_loop(args)
     if args.onnx is not None:
         return _export_onnx(args)
@@ -669,7 +676,7 @@ def _export_onnx(args):
 def _export_loop(args):
     """A model of recorded runs' whole period as one graph, with the recordings' limits unless given."""
     if not args.loop:
-        raise ValueError("--watchdog is an option of the loop's graph; it needs --loop")
+        raise ValueError("--watchdog and --rest are options of the loop's graph; they need --loop")
     if args.onnx is None or args.recordings is None:
         raise ValueError(
             "--loop writes the period of a model of recorded runs: it needs --onnx FILE.onnx and --recordings DIR"
@@ -684,6 +691,14 @@ def _export_loop(args):
     )
     if args.watchdog is not None:
         options["watchdog"] = args.watchdog
+    if args.rest is not None:
+        if not dataset.resting_files:
+            raise ValueError(
+                f"--rest: {args.recordings} holds no rest run (a recording whose inputs never change) to anchor "
+                "today's to; record one in the session of the recordings"
+            )
+        own = args.recordings / dataset.resting_files[0]
+        options["anchor"] = recordings.rest_offset(args.rest, own, tip=list(dataset.tip_columns))
     loop = control.loop_of(controller, dataset, **options)
     path = control.export_loop(loop, args.onnx)
     period = loop.period

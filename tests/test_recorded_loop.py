@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import onnx
+import pandas as pd
 import pytest
 import torch
 from test_recordings import TINY, delayed_rod_run
@@ -212,7 +213,7 @@ class DelayedRod:
         self.q, self.qd = q[:, -1], qd[:, -1]
 
 
-def test_the_exported_loop_drives_a_delayed_rod_from_the_cli_graph(trained, tmp_path):
+def test_the_exported_loop_drives_a_delayed_rod_from_the_cli_graph(trained, tmp_path, capsys):
     runs, data, _ = trained
     path = tmp_path / "loop.onnx"
     with contextlib.redirect_stdout(io.StringIO()) as out:
@@ -221,6 +222,12 @@ def test_the_exported_loop_drives_a_delayed_rod_from_the_cli_graph(trained, tmp_
             + ["--onnx", str(path)]
         )
     assert "delay 6 periods" in out.getvalue()
+    with pytest.raises(SystemExit) as stop:
+        cli.main(
+            ["export", "mlp", "--profile", "ci", "--recordings", str(runs), "--delay", "0.06", "--loop"]
+            + ["--onnx", str(tmp_path / "anchored.onnx"), "--rest", str(TRUNK_REST)]
+        )
+    assert stop.value.code == 2 and "holds no rest run" in capsys.readouterr().err
     meta = {p.key: p.value for p in onnx.load(path).metadata_props}
     assert json.loads(meta["input_columns"]) == ["u1", "u2"] and json.loads(meta["delay_steps"]) == DELAY
     assert json.loads(meta["safe_input"]) == pytest.approx(np.median(data.u[data.train].reshape(-1, 2), 0), abs=1e-6)
@@ -233,3 +240,35 @@ def test_the_exported_loop_drives_a_delayed_rod_from_the_cli_graph(trained, tmp_
     assert u.shape == (199, 2) and late == 0 and not holding[1:].any()
     assert ((u >= low - 1e-6) & (u <= high + 1e-6)).all() and (np.abs(np.diff(u, axis=0)) <= rate + 1e-6).all()
     assert np.isfinite(plant.tips).all()
+
+
+TRUNK_REST = Path(__file__).parents[1] / "datasets" / "asl_trunk" / "rest.csv.gz"
+TRUNK_TIP = ["x3_m", "y3_m", "z3_m"]
+
+
+def test_a_new_session_is_anchored_by_its_rest_run_to_the_recordings(tmp_path):
+    """The trunk's rest run, and the same run as a later session would film it: the rest pose
+    moved 12 mm, 5 mm and 30 mm; the offset is the move back, to the file's 1 um rounding."""
+    moved = tmp_path / "rest_today.csv"
+    frame = pd.read_csv(TRUNK_REST)
+    shift = np.array([0.012, -0.005, 0.030])
+    for column, delta in zip(TRUNK_TIP, shift):
+        frame[column] = (frame[column] + delta).round(6)
+    frame.to_csv(moved, index=False)
+    np.testing.assert_allclose(recordings.rest_offset(moved, TRUNK_REST, tip=TRUNK_TIP), -shift, atol=1e-6)
+    with pytest.raises(ValueError, match="its inputs change; a rest run holds every input constant"):
+        recordings.rest_offset(TRUNK_REST.with_name("random_1.csv.gz"), TRUNK_REST, tip=TRUNK_TIP)
+
+
+def test_an_anchored_loop_sees_todays_frames_as_the_recordings(rig):
+    _, data, _ = rig
+    run = recordings.read(rig[0] / "run1.csv", delay=0.06)
+    shift = np.array([0.01, -0.02, 0.005])
+    plain, anchored = untrained_loop(data), untrained_loop(data, anchor=-shift)
+    for t in range(60):
+        wanted = run.states[min(t + 7, len(run.states) - 1)]
+        np.testing.assert_allclose(
+            anchored(run.states[t, :3] + shift, wanted), plain(run.states[t, :3], wanted), atol=1e-6
+        )
+    with pytest.raises(ValueError, match="anchor must be 3 finite offsets in m"):
+        untrained_loop(data, anchor=[0.0, 0.0])

@@ -188,14 +188,19 @@ class Period(nn.Module):
         delay: int,
         watchdog: int,
         input_columns=(),
+        anchor=None,
     ):
         super().__init__()
+        k = len(estimator.R)
+        anchor = np.zeros(k) if anchor is None else np.asarray(anchor, np.float64)
+        self.register_buffer("anchor", torch.as_tensor(anchor))  # (k,) m added to every frame (a new session's)
         self.step, self.estimator, self.predictor = step, estimator, predictor
         self.delay, self.watchdog, self.input_columns = delay, watchdog, tuple(input_columns)
         self.register_buffer("same_point", point_matrix(points, len(estimator.R)))
         self.register_buffer("rate", torch.as_tensor(limits.rate, dtype=torch.float32))  # (m,)
 
     def forward(self, frame, reference, x, P, last_frame, stale, sent):
+        frame = frame + self.anchor
         found, fresh = torch.isfinite(frame), fresh_frames(frame, last_frame, self.same_point)  # (B, k) each
         x, P = self.estimator(frame, x, P, fresh)
         stale = torch.where(fresh, 0, stale + 1)
@@ -222,12 +227,20 @@ class Period(nn.Module):
 
 
 def loop_of(
-    controller, dataset: Dataset, *, watchdog: float = WATCHDOG, u_range=None, safe_input=None, rate=None
+    controller,
+    dataset: Dataset,
+    *,
+    watchdog: float = WATCHDOG,
+    u_range=None,
+    safe_input=None,
+    rate=None,
+    anchor=None,
 ) -> Loop:
     """The loop of ``controller``, a model trained on the recorded ``dataset``, on the rig that
     recorded it (the smoother's levels, the delay, the limits and the forward model come from
     it); ``u_range``, ``safe_input`` and ``rate`` override the recordings' limits, median and
-    rates (``InputLimits.of``)."""
+    rates (``InputLimits.of``). ``anchor`` (k,) m is added to every frame: a new session's
+    offset from the recordings' (``recordings.rest_offset``)."""
     if dataset.robot is not None or dataset.levels is None:
         raise ValueError(
             "the loop is for a model of recorded runs: give the Dataset of recordings.load_dataset, which carries "
@@ -238,6 +251,9 @@ def loop_of(
             f"{controller.name} reads {controller.model.dims.state} states and writes {controller.model.dims.inputs} "
             f"inputs; these recordings have {dataset.dims.state} and {dataset.dims.inputs}"
         )
+    k = len(dataset.tip_columns)
+    if anchor is not None and not (np.shape(anchor) == (k,) and np.isfinite(anchor).all()):
+        raise ValueError(f"anchor must be {k} finite offsets in m, one per tip column; got {anchor!r}")
     if not (isinstance(watchdog, (int, float)) and math.isfinite(watchdog) and watchdog >= 0):
         raise ValueError(f"watchdog must be a duration >= 0 in s; got {watchdog!r}")
     limits = InputLimits.of(dataset, u_range=u_range, safe_input=safe_input, rate=rate)
@@ -252,6 +268,7 @@ def loop_of(
         delay=dataset.delay_steps,
         watchdog=int(round(watchdog / dataset.dt)),
         input_columns=dataset.input_columns,
+        anchor=anchor,
     )
     return Loop(period, limited)
 

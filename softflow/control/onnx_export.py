@@ -41,7 +41,7 @@ def export_loop(loop: Loop, path) -> Path:
     ``stale``, ``sent``; outputs ``next_x``, ...; the first call gets ``start_memory`` from the
     metadata), and sends ``u`` (1, m) float32; ``holding`` says it is the safe input. The
     metadata are the step's (``export_onnx``) and the loop's: the period, the observed and input
-    columns, each input's rate limit, the watchdog and the start memory."""
+    columns, each input's rate limit, the watchdog, the session's anchor and the start memory."""
     if not isinstance(loop, Loop):
         raise ValueError(f"expected a Loop (softflow.control.loop_of); got {type(loop).__name__}")
     controller, period = loop.controller, loop.period
@@ -58,6 +58,7 @@ def export_loop(loop: Loop, path) -> Path:
             input_columns=list(loop.input_columns),
             input_rate=period.rate.tolist(),
             watchdog_periods=period.watchdog,
+            anchor_m=period.anchor.tolist(),
             memory=list(MEMORY),
             start_memory=start,
         ).items()

@@ -602,6 +602,28 @@ def read_path(path, *, tip, dt: float, noise: float = 1e-6, jerk: float | None =
 
 
 # ---------------------------------------------------------------------------- a folder of runs
+def rest_offset(session, reference, *, tip=None) -> np.ndarray:
+    """(k,) m to add to every frame of a new session so that its rest pose is the recordings': the
+    mean of each tip column over ``reference`` (a rest run of the session the model's recordings
+    come from) minus its mean over ``session`` (a rest run of today's: the rig re-assembled, the
+    motion capture re-calibrated, the rest pose moved). Both are rest runs: files whose inputs
+    never change."""
+    means, columns = [], []
+    for path in (reference, session):
+        try:
+            content = Path(path).read_bytes()
+        except OSError as error:
+            raise ValueError(f"{path}: cannot read the rest run ({error})") from error
+        table = _table(str(path), content, None, tip, True)
+        if _excited(table):
+            raise ValueError(f"{path}: its inputs change; a rest run holds every input constant")
+        means.append(np.nanmean(table.tip, 0))
+        columns.append(table.tip_columns)
+    if columns[0] != columns[1]:
+        raise ValueError(f"{session}: tip columns {list(columns[1])} differ from {list(columns[0])} of {reference}")
+    return means[0] - means[1]
+
+
 def recording_files(paths_or_folder) -> list[Path]:
     """The recordings a folder holds (its .csv, .csv.gz and .parquet files, by name) or the files listed."""
     if isinstance(paths_or_folder, (str, Path)):
