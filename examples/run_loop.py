@@ -36,11 +36,11 @@ class LoopGraph:
         self.delay, self.period = self.meta["delay_steps"], self.meta["sample_period_s"]
 
     def __call__(self, frame, reference):
-        """u (m,) to send now for the newest ``frame`` (k,) and the state wanted delay + 1
-        periods ahead, ``reference`` (d,); and whether u is the safe input."""
+        """u (m,) to send now for the newest ``frame`` (k,) and ``reference`` (3, d), the states
+        wanted now, delay and delay + 1 periods ahead; and whether u is the safe input."""
         feed = dict(
             frame=np.asarray(frame, np.float64).reshape(1, -1),
-            reference=np.asarray(reference, np.float32).reshape(1, -1),
+            reference=np.asarray(reference, np.float32).reshape(1, 3, -1),
             **self.memory,
         )
         u, holding, *memory = self.session.run(None, feed)
@@ -58,14 +58,16 @@ def _value(text: str):
 def run(graph: LoopGraph, plant, reference, *, paced: bool = True):
     """Track ``reference`` (T+1, d): the states wanted at each period, in the model's order
     (positions of the observed columns, then their velocities). Each period reads a frame,
-    sends u for the reference delay + 1 periods ahead, and (``paced``) waits for the next
-    period's deadline. Returns u (T, m), holding (T,) and the periods whose call overran."""
+    sends u for the reference now, delay and delay + 1 periods ahead (its last state once it
+    ends), and (``paced``) waits for the next period's deadline. Returns u (T, m), holding (T,)
+    and the periods whose call overran."""
     reference = np.asarray(reference, np.float64)
-    T, ahead = len(reference) - 1, graph.delay + 1
+    T = len(reference) - 1
     sent, holding, late = [], [], 0
     deadline = time.perf_counter()
     for t in range(T):
-        u, hold = graph(plant.read(), reference[min(t + ahead, T)])
+        rows = np.minimum([t, t + graph.delay, t + graph.delay + 1], T)
+        u, hold = graph(plant.read(), reference[rows])
         plant.send(u)
         sent.append(u)
         holding.append(hold)

@@ -6,24 +6,20 @@ workspace margin as ``check_workspace`` judges them, the safe input in their pla
 per input; what has no one-transition step is refused by name."""
 
 import contextlib
-import functools
 import io
 import json
 import re
 import warnings
-from dataclasses import replace
 
 import numpy as np
 import onnx
 import onnxruntime as ort
 import pytest
 import torch
-from test_recordings import TINY, point_mass_run
+from test_recordings import point_mass_run, tiny_training
 
 from softflow import HW_ROBOT, SIM_ROBOT, TWO_SEGMENT_ROD, Simulator, cli, control, data, recordings
-from softflow.models import checkpoints
 from softflow.models.registry import CONTROLLERS, resolved_kwargs
-from softflow.profiles import PROFILES
 from softflow.report import model_cards
 from softflow.studies import two_segment
 
@@ -274,9 +270,7 @@ def recorded(tmp_path_factory):
         point_mass_run(runs / f"run{i:02d}.csv", rng, 3, 2, 3.0)
     trained_in = tmp_path_factory.mktemp("checkpoints")
     with pytest.MonkeyPatch.context() as patch:
-        patch.setitem(PROFILES, "ci", replace(PROFILES["ci"], train=TINY))
-        patch.setattr(checkpoints, "TRAINED", trained_in)
-        patch.setattr(recordings, "load_dataset", functools.partial(recordings.load_dataset, data_dir=None))
+        tiny_training(patch, trained_in)
         with contextlib.redirect_stdout(io.StringIO()):
             cli.main(["train", "mlp", "rf", "--recordings", str(runs), "--profile", "ci", "--delay", f"{DELAY / 100}"])
         dataset = recordings.load_dataset(runs, delay=DELAY / 100)
@@ -286,9 +280,7 @@ def recorded(tmp_path_factory):
 @pytest.mark.parametrize("model", ["mlp", "rf"])
 def test_a_model_of_recorded_runs_exports_with_its_delay(recorded, model, tmp_path, capsys, monkeypatch):
     runs, dataset, trained_in = recorded
-    monkeypatch.setitem(PROFILES, "ci", replace(PROFILES["ci"], train=TINY))
-    monkeypatch.setattr(checkpoints, "TRAINED", trained_in)
-    monkeypatch.setattr(recordings, "load_dataset", functools.partial(recordings.load_dataset, data_dir=None))
+    tiny_training(monkeypatch, trained_in)
     out = tmp_path / f"{model}.onnx"
     cli.main(
         ["export", model, "--profile", "ci", "--recordings", str(runs), "--delay", f"{DELAY / 100}", "--onnx", str(out)]

@@ -5,11 +5,9 @@ moved), and its exported graph, run by examples/run_loop.py with numpy and onnxr
 is the torch period to 1e-5 over a whole run and drives a delayed rod."""
 
 import contextlib
-import functools
 import importlib.util
 import io
 import json
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -17,16 +15,14 @@ import onnx
 import pandas as pd
 import pytest
 import torch
-from test_recordings import TINY, delayed_rod_run
+from test_recordings import delayed_rod_run, tiny_training
 
 from softflow import SIM_ROBOT, Simulator, cli, control, recordings
 from softflow.control import loop
 from softflow.control.planning import Controller
 from softflow.data.dataset import Dataset
 from softflow.data.smoothing import _filter
-from softflow.models import checkpoints
 from softflow.models.registry import build_model
-from softflow.profiles import PROFILES
 
 DELAY = 6  # periods of 10 ms
 EXAMPLE = Path(__file__).parents[1] / "examples" / "run_loop.py"
@@ -108,9 +104,7 @@ def rig(tmp_path_factory):
         delayed_rod_run(runs / f"run{seed}.csv", DELAY, seed=30 + seed, seconds=6.0)
     trained_in = tmp_path_factory.mktemp("checkpoints")
     with pytest.MonkeyPatch.context() as patch:
-        patch.setitem(PROFILES, "ci", replace(PROFILES["ci"], train=TINY))
-        patch.setattr(checkpoints, "TRAINED", trained_in)
-        patch.setattr(recordings, "load_dataset", functools.partial(recordings.load_dataset, data_dir=None))
+        tiny_training(patch, trained_in)
         with contextlib.redirect_stdout(io.StringIO()):
             cli.main(["train", "mlp", "--recordings", str(runs), "--profile", "ci", "--delay", "0.06"])
     data = recordings.load_dataset(runs, delay=0.06, data_dir=None)
@@ -119,10 +113,14 @@ def rig(tmp_path_factory):
 
 @pytest.fixture
 def trained(rig, monkeypatch):
-    monkeypatch.setitem(PROFILES, "ci", replace(PROFILES["ci"], train=TINY))
-    monkeypatch.setattr(checkpoints, "TRAINED", rig[2])
-    monkeypatch.setattr(recordings, "load_dataset", functools.partial(recordings.load_dataset, data_dir=None))
+    tiny_training(monkeypatch, rig[2])
     return rig
+
+
+def rows_for(states, t: int) -> np.ndarray:
+    """The reference rows a loop gets at period t: the states wanted now, DELAY and DELAY + 1
+    periods ahead (the last once the path ends), (3, d)."""
+    return states[np.minimum([t, t + DELAY, t + DELAY + 1], len(states) - 1)]
 
 
 def untrained_loop(data, **options) -> loop.Loop:
@@ -137,19 +135,19 @@ def test_the_loop_sends_the_safe_input_until_it_knows_the_state_and_when_frames_
     tip = run.states[:, :3]  # (T+1, 3)
     looped = untrained_loop(data)
     safe = looped.period.step.safe.double().numpy()
-    np.testing.assert_array_equal(looped(np.full(3, np.nan), run.states[7]), safe)  # no frame yet
+    np.testing.assert_array_equal(looped(np.full(3, np.nan), rows_for(run.states, 0)), safe)  # no frame yet
     assert looped.holding
-    looped(tip[0], run.states[8])
+    looped(tip[0], rows_for(run.states, 1))
     assert not looped.holding  # a fresh frame of the point
     watchdog = looped.period.watchdog
     for t in range(1, watchdog + 1):  # the tracker holds the point: every coordinate repeats
-        looped(tip[0], run.states[8 + t])
+        looped(tip[0], rows_for(run.states, 1 + t))
         assert not looped.holding
-    np.testing.assert_array_equal(looped(tip[0], run.states[9 + watchdog]), safe)
+    np.testing.assert_array_equal(looped(tip[0], rows_for(run.states, 2 + watchdog)), safe)
     assert looped.holding
-    looped(tip[1], run.states[10 + watchdog])
+    looped(tip[1], rows_for(run.states, 3 + watchdog))
     assert not looped.holding  # fresh again
-    looped(tip[2], np.full(6, 1e3))  # a reference a units slip sent beyond the workspace
+    looped(tip[2], np.full((3, 6), 1e3))  # a reference a units slip sent beyond the workspace
     assert looped.holding
 
 
@@ -158,7 +156,7 @@ def test_a_constant_coordinate_is_not_a_held_frame(rig):
     run = recordings.read(rig[0] / "run0.csv", delay=0.06)
     looped = untrained_loop(data, watchdog=0.0)
     for t in range(20):
-        looped(np.array([0.4, *run.states[t, 1:3]]), run.states[t + 7])  # x never changes, y and z do
+        looped(np.array([0.4, *run.states[t, 1:3]]), rows_for(run.states, t))  # x never changes, y and z do
         assert not looped.holding or t == 0
 
 
@@ -167,7 +165,7 @@ def test_the_loop_moves_no_faster_than_the_recordings_and_stays_in_their_range(r
     run = recordings.read(rig[0] / "run1.csv", delay=0.06)
     looped = untrained_loop(data, u_range=(-1.0, 1.0), rate=1e-3)
     rate = looped.period.rate.double().numpy()
-    sent = [looped(x[:3], run.states[min(t + 7, len(run.states) - 1)]) for t, x in enumerate(run.states)]
+    sent = [looped(x[:3], rows_for(run.states, t)) for t, x in enumerate(run.states)]
     steps = np.abs(np.diff(sent, axis=0))
     assert (steps <= rate + 1e-6).all() and (np.abs(sent) <= 1.0).all()
     assert (steps.max(0) > 0.999 * rate).all()  # each input is held to its limit, not under it by a still model
@@ -184,7 +182,7 @@ def test_the_loops_graph_run_by_the_example_is_the_torch_period(rig, tmp_path):
     frames[rng.random(len(frames)) < 0.05] = np.nan  # lost
     held = np.flatnonzero(rng.random(len(frames)) < 0.05)
     frames[held[held > 0]] = frames[held[held > 0] - 1]  # held by the tracker
-    reference = run.states[np.minimum(np.arange(len(frames)) + DELAY + 1, len(frames) - 1)]
+    reference = [rows_for(run.states, t) for t in range(len(frames))]
     torch_u, graph_u = [], []
     for frame, wanted in zip(frames, reference):
         torch_u.append(looped(frame, wanted))
@@ -266,7 +264,7 @@ def test_an_anchored_loop_sees_todays_frames_as_the_recordings(rig):
     shift = np.array([0.01, -0.02, 0.005])
     plain, anchored = untrained_loop(data), untrained_loop(data, anchor=-shift)
     for t in range(60):
-        wanted = run.states[min(t + 7, len(run.states) - 1)]
+        wanted = rows_for(run.states, t)
         np.testing.assert_allclose(
             anchored(run.states[t, :3] + shift, wanted), plain(run.states[t, :3], wanted), atol=1e-6
         )

@@ -2,7 +2,9 @@
 back on the commands' grid; every bad file refused by name, row and column; a folder becomes the
 Dataset training uses, split by recording, and the MLP trains on it."""
 
+import functools
 import gzip
+from dataclasses import replace
 
 import numpy as np
 import pandas as pd
@@ -11,7 +13,8 @@ import pytest
 from softflow import SIM_ROBOT, Simulator, control, recordings, training
 from softflow.data.dataset import Dataset
 from softflow.data.smoothing import smooth
-from softflow.profiles import TrainConfig
+from softflow.models import checkpoints
+from softflow.profiles import PROFILES, TrainConfig
 
 CAMERA = 1 / 30  # s: frame period
 COMMAND = 0.01  # s: command period
@@ -23,6 +26,14 @@ LOST = 0.1  # share of frames lost
 # a finite difference of the raw frames has sqrt(2) x 1 mm x 30 Hz = 42 mm/s).
 POSITION_RMS, VELOCITY_RMS = NOISE, 0.04 * 0.05 * 2 * np.pi
 TINY = TrainConfig(epochs=2, steps_per_epoch=30, batch_size=64, warmup_steps=5, val_samples=300, patience=2)
+
+
+def tiny_training(patch, trained_in) -> None:
+    """With ``patch`` (a MonkeyPatch), train into ``trained_in`` on the ci profile shrunk to TINY,
+    recordings read without a cache: nothing in data/."""
+    patch.setitem(PROFILES, "ci", replace(PROFILES["ci"], train=TINY))
+    patch.setattr(checkpoints, "TRAINED", trained_in)
+    patch.setattr(recordings, "load_dataset", functools.partial(recordings.load_dataset, data_dir=None))
 
 
 def camera_times(seconds: float, rng) -> np.ndarray:

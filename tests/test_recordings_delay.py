@@ -3,19 +3,15 @@ chooses: a model of delayed recordings plans inputs already advanced by the dela
 at period k), from a desired path given as positions in a CSV, on the command line as in Python."""
 
 import contextlib
-import functools
 import io
-from dataclasses import replace
 
 import numpy as np
 import pandas as pd
 import pytest
-from test_recordings import TINY, delayed_rod_run
+from test_recordings import delayed_rod_run, tiny_training
 
 from softflow import cli, control, recordings
 from softflow.control.planning import advance
-from softflow.models import checkpoints
-from softflow.profiles import PROFILES
 
 DELAY = 6  # periods of 10 ms
 
@@ -41,9 +37,7 @@ def delayed(tmp_path_factory):
     frame[["time_s", "x_m", "y_m", "z_m"]].to_csv(path, index=False)
     trained_in = tmp_path_factory.mktemp("checkpoints")
     with pytest.MonkeyPatch.context() as patch:
-        patch.setitem(PROFILES, "ci", replace(PROFILES["ci"], train=TINY))
-        patch.setattr(checkpoints, "TRAINED", trained_in)
-        patch.setattr(recordings, "load_dataset", functools.partial(recordings.load_dataset, data_dir=None))
+        tiny_training(patch, trained_in)
         with contextlib.redirect_stdout(io.StringIO()) as out:
             cli.main(
                 ["train", "mlp", "--recordings", str(runs), "--profile", "ci", "--delay", "0.06"]
@@ -55,9 +49,7 @@ def delayed(tmp_path_factory):
 
 @pytest.fixture
 def with_models(delayed, monkeypatch):
-    monkeypatch.setitem(PROFILES, "ci", replace(PROFILES["ci"], train=TINY))
-    monkeypatch.setattr(checkpoints, "TRAINED", delayed[2])
-    monkeypatch.setattr(recordings, "load_dataset", functools.partial(recordings.load_dataset, data_dir=None))
+    tiny_training(monkeypatch, delayed[2])
     return delayed
 
 

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import onnx
+import onnxruntime as ort
 import torch
 from torch import nn
 
@@ -76,6 +77,21 @@ class InputLimits:
         if not (np.isfinite(rate).all() and (rate > 0).all()):
             raise ValueError(f"rate must be a positive change per period, one for all inputs or one each; got {rate!r}")
         return cls(low, high, rate, safe)
+
+
+@dataclass(frozen=True)
+class Feedback:
+    """How the loop corrects: ``blend`` (positions, velocities), the share of the predicted state's
+    departure from the wanted one the model is shown; ``integral`` (1/s), the gain of the integrated
+    predicted position error added to the wanted states. The default, chosen on a pilot before the
+    loop study's first row (docs/assumptions.md): integral action alone, as the twin's loop."""
+
+    blend: tuple[float, float] = (0.0, 0.0)
+    integral: float = 2.0
+
+    def __post_init__(self):
+        if not (len(self.blend) == 2 and all(0 <= b <= 1 for b in self.blend) and 0 <= self.integral < math.inf):
+            raise ValueError(f"blend must be two shares in [0, 1] and integral a gain >= 0 in 1/s; got {self!r}")
 
 
 class Estimator(nn.Module):
@@ -165,17 +181,21 @@ def fresh_frames(frame, last_frame, same_point):
     return torch.isfinite(frame) & (repeated < same_point.sum(0))
 
 
-MEMORY = ("x", "P", "last_frame", "stale", "sent")  # a period's memory, in the graph's input and output order
+MEMORY = ("x", "P", "last_frame", "stale", "sent", "integral")  # a period's memory, the graph's order
 
 
 class Period(nn.Module):
-    """One period of the loop: ``forward(frame, reference, x, P, last_frame, stale, sent)`` ->
-    (u, holding, x, P, last_frame, stale, sent). ``frame`` (B, k) float64: the observed columns'
-    newest values (NaN: none); ``reference`` (B, d) float32: the state wanted d + 1 periods
-    ahead, x*_{t+d+1}; memory (``MEMORY``): the filter's x (B, k, 3) and P (B, k, 3, 3), the
-    last frame (B, k), the periods since each column's last fresh frame (B, k) int64, and the
-    last max(d, 1) inputs sent (B, max(d, 1), m) float32, oldest first. ``u`` (B, m) is sent
-    now; ``holding`` (B,) whether it is the safe input."""
+    """One period of the loop: ``forward(frame, reference, *memory)`` -> (u, holding, *memory).
+    ``frame`` (B, k) float64: the observed columns' newest values (NaN: none); ``reference``
+    (B, 3, d) float32: the states wanted now, d and d + 1 periods ahead, x*_t, x*_{t+d}, x*_{t+d+1};
+    memory (``MEMORY``): the filter's x (B, k, 3) and P (B, k, 3, 3), the last frame (B, k), the
+    periods since each column's last fresh frame (B, k) int64, the last max(d, 1) inputs sent
+    (B, max(d, 1), m) float32, oldest first, and the integral of the position error
+    (B, k) float32, m s. ``u`` (B, m) is sent now; ``holding`` (B,) whether it is the safe input.
+
+    Feedback (``Feedback``): the model is asked for the transition from the wanted state moved
+    towards the predicted one by ``blend`` (positions, velocities), to the wanted state, both
+    shifted by ``integral`` (1/s) times the integral of the position error now, x*_t - x_t."""
 
     def __init__(
         self,
@@ -187,19 +207,25 @@ class Period(nn.Module):
         points,
         delay: int,
         watchdog: int,
+        dt: float,
         input_columns=(),
         anchor=None,
+        feedback: Feedback | None = None,
     ):
         super().__init__()
         k = len(estimator.R)
+        feedback = feedback or Feedback()
         anchor = np.zeros(k) if anchor is None else np.asarray(anchor, np.float64)
         self.register_buffer("anchor", torch.as_tensor(anchor))  # (k,) m added to every frame (a new session's)
+        blend = np.repeat(np.asarray(feedback.blend, np.float32), k)  # (d,): positions', then velocities'
+        self.register_buffer("blend", torch.as_tensor(blend))
         self.step, self.estimator, self.predictor = step, estimator, predictor
         self.delay, self.watchdog, self.input_columns = delay, watchdog, tuple(input_columns)
-        self.register_buffer("same_point", point_matrix(points, len(estimator.R)))
+        self.dt, self.integral_gain = float(dt), float(feedback.integral)
+        self.register_buffer("same_point", point_matrix(points, k))
         self.register_buffer("rate", torch.as_tensor(limits.rate, dtype=torch.float32))  # (m,)
 
-    def forward(self, frame, reference, x, P, last_frame, stale, sent):
+    def forward(self, frame, reference, x, P, last_frame, stale, sent, integral):
         frame = frame + self.anchor
         found, fresh = torch.isfinite(frame), fresh_frames(frame, last_frame, self.same_point)  # (B, k) each
         x, P = self.estimator(frame, x, P, fresh)
@@ -207,12 +233,19 @@ class Period(nn.Module):
         last_frame = torch.where(found, frame, last_frame)
         now = torch.cat([x[..., 0], x[..., 1]], -1)  # (B, d): positions, then velocities
         ahead = self.predictor(now, sent[:, sent.shape[1] - self.delay :].double()) if self.delay else now
-        u, outside = self.step(ahead.float(), reference)
+        ahead, (wanted, now_wanted, next_wanted) = ahead.float(), reference.unbind(1)
+        k = integral.shape[1]
+        summed = integral + self.dt * (wanted - now.float())[:, :k]  # (B, k): the position error now
+        shift = torch.cat([self.integral_gain * summed, torch.zeros_like(summed)], 1)  # (B, d): positions only
+        start = now_wanted + self.blend * (ahead - now_wanted)
+        u, outside = self.step(start + shift, next_wanted + shift)
+        outside = outside | self.step.outside(ahead, next_wanted)
         previous = sent[:, -1]
         u = torch.minimum(torch.maximum(u, previous - self.rate), previous + self.rate)
         holding = outside | (stale > self.watchdog).any(-1)
         u = torch.where(holding.unsqueeze(-1), self.step.safe, u)
-        return u, holding, x, P, last_frame, stale, torch.cat([sent[:, 1:], u.unsqueeze(1)], 1)
+        integral = torch.where(holding.unsqueeze(-1), integral, summed)  # no integration while holding
+        return u, holding, x, P, last_frame, stale, torch.cat([sent[:, 1:], u.unsqueeze(1)], 1), integral
 
     def memory(self, batch: int = 1) -> dict:
         """The memory a loop starts from: nothing known, every column stale, the safe input sent."""
@@ -223,6 +256,7 @@ class Period(nn.Module):
             last_frame=torch.full((batch, k), torch.nan, dtype=torch.float64),
             stale=torch.full((batch, k), self.watchdog + 1, dtype=torch.int64),
             sent=self.step.safe.expand(batch, max(self.delay, 1), m).clone(),
+            integral=torch.zeros(batch, k),
         )
 
 
@@ -235,6 +269,7 @@ def loop_of(
     safe_input=None,
     rate=None,
     anchor=None,
+    feedback: Feedback | None = None,
 ) -> Loop:
     """The loop of ``controller``, a model trained on the recorded ``dataset``, on the rig that
     recorded it (the smoother's levels, the delay, the limits and the forward model come from
@@ -267,8 +302,10 @@ def loop_of(
         points=tip_points(dataset.tip_columns),
         delay=dataset.delay_steps,
         watchdog=int(round(watchdog / dataset.dt)),
+        dt=dataset.dt,
         input_columns=dataset.input_columns,
         anchor=anchor,
+        feedback=feedback,
     )
     return Loop(period, limited)
 
@@ -285,7 +322,7 @@ class Loop:
 
     def __call__(self, frame, reference) -> np.ndarray:
         frame = torch.as_tensor(np.asarray(frame, np.float64)).reshape(1, -1)
-        reference = torch.as_tensor(np.asarray(reference, np.float32)).reshape(1, -1)
+        reference = torch.as_tensor(np.asarray(reference, np.float32)).reshape(1, 3, -1)
         with torch.no_grad():
             u, holding, *memory = self.period(frame, reference, *self.memory.values())
         self.memory, self.holding = dict(zip(MEMORY, memory)), bool(holding[0])
@@ -299,10 +336,30 @@ class Loop:
         """The period as one graph: inputs frame, reference and the memory, outputs u, holding and
         the memory (names ``MEMORY``, the outputs prefixed ``next_``); batch as the first axis."""
         k, d = self.period.same_point.shape[0], self.period.step.box_low.shape[0] // 2
-        example = (torch.zeros(2, k, dtype=torch.float64), torch.zeros(2, d), *self.period.memory(2).values())
+        example = (torch.zeros(2, k, dtype=torch.float64), torch.zeros(2, 3, d), *self.period.memory(2).values())
         return export_graph(
             self.period,
             example,
             ["frame", "reference", *MEMORY],
             ["u", "holding", *(f"next_{name}" for name in MEMORY)],
         )
+
+
+class GraphLoop:
+    """``loop``'s period as its exported graph in onnxruntime (one thread), for B rigs at once:
+    ``graph_loop(frames (B, k), references (B, d))`` -> u (B, m) float64; ``holding`` (B,)
+    after each call. What examples/run_loop.py does on a robot, batched."""
+
+    def __init__(self, loop: Loop, batch: int = 1):
+        options = ort.SessionOptions()
+        options.intra_op_num_threads = options.inter_op_num_threads = 1
+        made = loop.graph().SerializeToString()
+        self.session = ort.InferenceSession(made, options, providers=["CPUExecutionProvider"])
+        self.memory = {name: value.numpy() for name, value in loop.period.memory(batch).items()}
+        self.holding = np.ones(batch, bool)
+
+    def __call__(self, frames, references) -> np.ndarray:
+        feed = dict(frame=np.asarray(frames, np.float64), reference=np.asarray(references, np.float32), **self.memory)
+        u, self.holding, *memory = self.session.run(None, feed)
+        self.memory = dict(zip(MEMORY, memory))
+        return u.astype(np.float64)

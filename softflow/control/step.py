@@ -99,14 +99,18 @@ class Step(nn.Module):
         self.register_buffer("box_low", torch.as_tensor(box[0], dtype=torch.float64))  # (2d,) float64, as
         self.register_buffer("box_high", torch.as_tensor(box[1], dtype=torch.float64))  # check_workspace judges
 
+    def outside(self, x_t, x_next):
+        """(B,) bool: the transitions with a state not finite or beyond the workspace box."""
+        states = torch.cat([x_t, x_next], 1).double()  # (B, 2d)
+        inside = (states >= self.box_low) & (states <= self.box_high)  # NaN compares False
+        return inside.to(torch.int32).sum(1) < states.shape[1]
+
     def unclipped(self, x_t, x_next, *, noise=None, prior=None, steps: int | None = None):
         """The model's u (B, m) before the clip and the safe input, and (B,) bool: the transitions
         that are outside. A flow starts from ``noise`` (B, m) (None: z = 0) and takes ``steps``
         Euler steps (None: its own). ``prior`` (B, m): a prior model's u_phys solved elsewhere
         (``Controller.plan`` gives the static table's), instead of the grid's."""
-        states = torch.cat([x_t, x_next], 1).double()  # (B, 2d)
-        inside = (states >= self.box_low) & (states <= self.box_high)  # NaN compares False
-        outside = inside.to(torch.int32).sum(1) < states.shape[1]
+        outside = self.outside(x_t, x_next)
         if self.prior is not None and prior is None:
             prior, off_grid = self.prior(x_next[:, : self.model.dims.position])
             outside = outside | off_grid

@@ -46,6 +46,11 @@ trunk_v2: the trunk asked again, fixed before any row ran: MLP, LSTM, Transforme
     replays), tip alone or every disk, 3 seeds at 5 000 steps; judge-free scores first, then two
     judges of the tip (ridge, kernel) each fitted on runs other than the one it scores, whose floors
     and resolution curves are rows of the study computed before any planner's.
+loop: the loop of a model of recorded runs against its open-loop plan, fixed before any row ran:
+    a twin of the hardware rod behind a 0.2 s actuator delay and a 100 Hz motion-capture camera
+    with noise, held and lost frames; MLP, RF and RF-FWD trained on its recorded runs (typical
+    gap), 3 seeds at 20 000 steps; Table III's shapes and held-out runs' tip paths tracked open
+    loop and closed loop (the loop's graph) across cable friction the recordings never had.
 one_step: the one-step flows (RF-1, RF-FWD-1) at 1 and 2 steps beside their parents at 4 and 1
     Euler steps and the MLP, fixed before any row ran: 3 seeds at 20 000 steps on the paper rod
     (Table I's references) and the two-segment rod seen at its tip (its shapes and random
@@ -60,6 +65,7 @@ from softflow.studies import (
     data_size,
     design,
     fwd_lambda,
+    loop,
     one_step,
     protocol,
     recorded,
@@ -88,5 +94,6 @@ STUDIES = {
     "recorded": Study(recorded.cells, recorded.run, recorded.models, notebook="13_recorded_runs.ipynb"),
     "trunk": Study(trunk.cells, trunk.run, trunk.models, notebook="14_real_robot.ipynb"),
     "trunk_v2": Study(trunk_v2.cells, trunk_v2.run, trunk_v2.models, notebook="14_real_robot.ipynb"),
+    "loop": Study(loop.cells, loop.run, loop.models),
     "one_step": Study(one_step.cells, one_step.run, one_step.models, notebook="15_one_step.ipynb"),
 }
