@@ -73,6 +73,7 @@ CI_CELLS = {  # study: the fields that pick one of its cheapest ci cells (shippe
     "data_size": dict(model="mlp", episodes=100),
     "design": dict(variant="rf (λ = 0)"),
     "fwd_lambda": dict(consistency=0.0),
+    "loop": dict(model="mlp"),
     "one_step": dict(model="rf-1"),
     "protocol": dict(model="rf", condition="speed-0.5"),
     "table1": dict(model="mlp", seed=0),

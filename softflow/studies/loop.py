@@ -151,8 +151,6 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
             achieved = states[r, : reference.n_steps + 1]
             rows.append(
                 dict(
-                    model=cell["model"],
-                    seed=cell["seed"],
                     reference=reference.name,
                     family=reference.family,
                     loop=loop,
