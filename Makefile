@@ -74,7 +74,7 @@ lint: $(STAMP)
 #   .venv/bin/papermill --cwd notebooks -p profile ci notebooks/NN_x.ipynb /tmp/NN_x.ipynb
 # and copy it back; this then drops the execution timestamps, papermill's metadata and its
 # injected-parameters cell, and re-encodes the figures losslessly (tests/test_notebooks_clean.py
-# fails on any of those left, or on more than 1.6 MB of notebooks in all).
+# fails on any of those left, or on more than 1.7 MB of notebooks in all).
 strip: $(STAMP)
 	$(PY) tests/strip_notebooks.py
 
@@ -97,7 +97,7 @@ loop-parts: $(STAMP)
 
 # Every cell of the studies, recomputed (not read from figures/sweeps/) and cached in
 # data/sweeps/, so an interrupted run resumes; SCHEDULER_FILE=s.json runs them on your cluster.
-STUDIES := table1 protocol data_size ambiguity fwd_lambda design closed_loop twin_burst recorded two_segment trunk
+STUDIES := table1 protocol data_size ambiguity fwd_lambda design closed_loop twin_burst recorded two_segment trunk loop
 study: $(STAMP)
 	for s in $(STUDIES); do \
 		$(PY) -m softflow sweep $$s --profile $(PROFILE) --recompute $(if $(SCHEDULER_FILE),--scheduler-file $(SCHEDULER_FILE)) || exit 1; \
@@ -117,6 +117,7 @@ bench: $(STAMP) $(ELASTICA)  # PyElastica is a benchmark-only dependency, in its
 	$(PY) benchmarks/bench_training.py --profile $(BENCH_PROFILE)
 	$(PY) benchmarks/bench_sweep.py
 	$(PY) benchmarks/bench_loop.py
+	$(PY) benchmarks/bench_recorded_loop.py  # the loop study's models: its paper sweep first
 
 # What a newcomer waits for (long: about as much as make test and a ci reproduce together):
 # make venv + make test on a fresh clone, and each notebook's ci run.

@@ -306,6 +306,12 @@ def _recording_options(group):
         action="store_true",
         help="cut a recording at a longer run of lost frames than --max-gap instead of refusing it",
     )
+    group.add_argument(
+        "--causal",
+        action="store_true",
+        help="states from the smoother's filter alone (each from the frames up to it), as the loop of "
+        "export --loop sees them: train a model for the closed loop with it",
+    )
 
 
 def _shape_options(sub, out_required: bool = True):
@@ -429,7 +435,8 @@ def _recording_flags(args) -> list[str]:
     """The options of ``_recording_options`` given on the command line."""
     options = ("inputs", "tip", "dt", "delay", "max_gap")
     given = [f"--{option.replace('_', '-')}" for option in options if getattr(args, option) is not None]
-    return given + ["--split-at-gaps"] * args.split_at_gaps + ["--fractions"] * (args.fractions is not None)
+    flags = ["--split-at-gaps"] * args.split_at_gaps + ["--causal"] * args.causal
+    return given + flags + ["--fractions"] * (args.fractions is not None)
 
 
 def _recordings(args):
@@ -443,6 +450,7 @@ def _recordings(args):
         fractions=args.fractions,
         max_gap=recordings.MAX_GAP if args.max_gap is None else args.max_gap,
         split_at_gaps=args.split_at_gaps,
+        causal=args.causal,
     )
 
 
@@ -468,7 +476,7 @@ def _recording_values(args) -> list[str]:
         if value is not None:
             text = ",".join(map(str, typed[option])) if option in typed else f"{value:g}"
             out.append(f"--{option.replace('_', '-')} {text}")
-    return out + ["--split-at-gaps"] * args.split_at_gaps
+    return out + ["--split-at-gaps"] * args.split_at_gaps + ["--causal"] * args.causal
 
 
 def _check(args):

@@ -55,6 +55,23 @@ def test_the_loops_filter_is_the_smoothers_forward_pass():
         np.testing.assert_allclose(P[0, i].numpy(), covariance[-1, 0], rtol=1e-9, atol=1e-15)
 
 
+def test_a_model_for_the_loop_trains_on_the_states_the_loop_estimates(rig):
+    """Recordings read with causal=True (levels given, as the loop's are one per column) hold the
+    loop's own estimates: the filter over the same frames, period by period, to 1e-9 m."""
+    runs = rig[0]
+    run = recordings.read(runs / "run0.csv", delay=0.06, noise=1e-4, jerk=10.0, causal=True)
+    frames = pd.read_csv(runs / "run0.csv").dropna(subset=["x_m"])[["x_m", "y_m", "z_m"]].to_numpy()
+    estimator = loop.Estimator(0.01, np.full(3, 1e-4), np.full(3, 10.0))
+    x, P = torch.full((1, 3, 3), torch.nan, dtype=torch.float64), torch.zeros(1, 3, 3, 3, dtype=torch.float64)
+    online = []
+    for frame in torch.as_tensor(frames)[:, None]:
+        x, P = estimator(frame, x, P, torch.isfinite(frame))
+        online.append(torch.cat([x[0, :, 0], x[0, :, 1]]).numpy())
+    np.testing.assert_allclose(np.array(online)[: len(run.states)], run.states, rtol=0, atol=1e-9)
+    smoothed = recordings.read(runs / "run0.csv", delay=0.06, noise=1e-4, jerk=10.0).states
+    assert np.abs(smoothed - run.states).max() > 1e-3  # the smoother's states are others: it sees ahead
+
+
 def linear_rig(steps: int = 400, seed: int = 1):
     """Episodes of a stable linear rig x_{t+1} = x_t A + u_t B + c, exactly: (Dataset, A, B, c)."""
     rng = np.random.default_rng(seed)
@@ -98,7 +115,7 @@ def test_the_limits_are_what_the_training_recordings_did():
 @pytest.fixture(scope="module")
 def rig(tmp_path_factory):
     """Three runs of the simulated rod whose inputs act 60 ms after they are sent, their Dataset,
-    and an MLP trained on them by the CLI (ci profile shrunk to TINY)."""
+    and an MLP trained on them by the CLI (ci profile shrunk to TINY), the states causal."""
     runs = tmp_path_factory.mktemp("delayed")
     for seed in range(3):
         delayed_rod_run(runs / f"run{seed}.csv", DELAY, seed=30 + seed, seconds=6.0)
@@ -106,8 +123,8 @@ def rig(tmp_path_factory):
     with pytest.MonkeyPatch.context() as patch:
         tiny_training(patch, trained_in)
         with contextlib.redirect_stdout(io.StringIO()):
-            cli.main(["train", "mlp", "--recordings", str(runs), "--profile", "ci", "--delay", "0.06"])
-    data = recordings.load_dataset(runs, delay=0.06, data_dir=None)
+            cli.main(["train", "mlp", "--recordings", str(runs), "--profile", "ci", "--delay", "0.06", "--causal"])
+    data = recordings.load_dataset(runs, delay=0.06, causal=True, data_dir=None)
     return runs, data, trained_in
 
 
@@ -216,13 +233,13 @@ def test_the_exported_loop_drives_a_delayed_rod_from_the_cli_graph(trained, tmp_
     path = tmp_path / "loop.onnx"
     with contextlib.redirect_stdout(io.StringIO()) as out:
         cli.main(
-            ["export", "mlp", "--profile", "ci", "--recordings", str(runs), "--delay", "0.06", "--loop"]
+            ["export", "mlp", "--profile", "ci", "--recordings", str(runs), "--delay", "0.06", "--causal", "--loop"]
             + ["--onnx", str(path)]
         )
     assert "delay 6 periods" in out.getvalue()
     with pytest.raises(SystemExit) as stop:
         cli.main(
-            ["export", "mlp", "--profile", "ci", "--recordings", str(runs), "--delay", "0.06", "--loop"]
+            ["export", "mlp", "--profile", "ci", "--recordings", str(runs), "--delay", "0.06", "--causal", "--loop"]
             + ["--onnx", str(tmp_path / "anchored.onnx"), "--rest", str(TRUNK_REST)]
         )
     assert stop.value.code == 2 and "holds no rest run" in capsys.readouterr().err

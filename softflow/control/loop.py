@@ -24,6 +24,7 @@ Each period, in order:
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -291,6 +292,14 @@ def loop_of(
         raise ValueError(f"anchor must be {k} finite offsets in m, one per tip column; got {anchor!r}")
     if not (isinstance(watchdog, (int, float)) and math.isfinite(watchdog) and watchdog >= 0):
         raise ValueError(f"watchdog must be a duration >= 0 in s; got {watchdog!r}")
+    feedback = feedback or Feedback()
+    if any(feedback.blend) and not dataset.causal:
+        warnings.warn(
+            f"{controller.name} is shown the loop's estimates (blend {feedback.blend}) but was trained on the "
+            "smoother's states, which use frames after each step: train it on recordings read with causal=True "
+            "(--causal)",
+            stacklevel=2,
+        )
     limits = InputLimits.of(dataset, u_range=u_range, safe_input=safe_input, rate=rate)
     limited = controller.limited((limits.low, limits.high), limits.safe)
     noise, jerk = dataset.levels

@@ -60,6 +60,7 @@ class Dataset:
     split_files: dict | None = None  # recorded data: {"train" | "val" | "test": file names}
     resting_files: tuple[str, ...] = ()  # recorded data: files left out, their inputs never changing
     levels: tuple[np.ndarray, np.ndarray] | None = None  # recorded data: the smoother's (noise, jerk) per tip column
+    causal: bool = False  # recorded data: states from the smoother's filter alone (what a loop knows), not the smoother
 
     def __post_init__(self):
         if self.u.ndim != 3 or self.states.ndim != 3 or self.states.shape[:2] != (len(self.u), self.u.shape[1] + 1):

@@ -389,8 +389,9 @@ def _long_gaps(table: _Table, max_gap: float, within=(-np.inf, np.inf)) -> list[
     return gaps
 
 
-def _resample(table: _Table, dt: float, max_gap: float, noise, jerk) -> Recording:
-    """The table on its grid of period dt: held commands averaged, tip smoothed, long gaps refused."""
+def _resample(table: _Table, dt: float, max_gap: float, noise, jerk, causal: bool = False) -> Recording:
+    """The table on its grid of period dt: held commands averaged, tip smoothed (``causal``:
+    filtered), long gaps refused."""
     source, times, tip = table.source, table.times, table.tip
     grid = _grid(table, dt)
     if grid is None:
@@ -414,7 +415,9 @@ def _resample(table: _Table, dt: float, max_gap: float, noise, jerk) -> Recordin
     states, levels = np.empty((len(grid), 2 * k)), []  # (T+1, 2k)
     for i, rows in enumerate(frames):
         try:
-            states[:, i], states[:, k + i], *level = smooth(times[rows], tip[rows, i], grid, noise=noise, jerk=jerk)
+            states[:, i], states[:, k + i], *level = smooth(
+                times[rows], tip[rows, i], grid, noise=noise, jerk=jerk, causal=causal
+            )
         except ValueError as error:
             raise ValueError(f"{source}: column {table.tip_columns[i]!r}: {error}") from error
         levels.append(level)
@@ -542,6 +545,7 @@ def read(
     jerk=None,
     dropouts: bool = True,
     delay: float | None = None,
+    causal: bool = False,
 ) -> Recording:
     """One recorded run (a CSV, gzip-compressed CSV or Parquet file) on a regular grid of period
     ``dt`` (s; default: the commands' period). ``inputs`` and ``tip`` name the columns (default:
@@ -550,8 +554,9 @@ def read(
     jumped frames are lost frames (``lost_frames``; ``dropouts=False`` keeps every frame, e.g. for
     noise-free simulated data, whose still tip repeats exactly). ``delay`` (s) is the
     input-to-motion delay the recording carries (None: ``estimate_delay``); its arrays are never
-    shifted, ``pairs()`` pairs them. A bad file is a ValueError naming it, and the row and column
-    where there is one."""
+    shifted, ``pairs()`` pairs them. ``causal``: the states are the smoother's filter run forward
+    (each from the frames up to it: what a control loop knows then) instead of the smoother's. A
+    bad file is a ValueError naming it, and the row and column where there is one."""
     _check_options(dt, max_gap, noise, jerk, delay)
     path = Path(path)
     try:
@@ -559,7 +564,8 @@ def read(
     except OSError as error:
         raise ValueError(f"{path}: cannot read the recording ({error})") from error
     table = _table(str(path), content, inputs, tip, dropouts)
-    return _with_delay(_resample(table, table.command_period if dt is None else dt, max_gap, noise, jerk), delay)
+    period = table.command_period if dt is None else dt
+    return _with_delay(_resample(table, period, max_gap, noise, jerk, causal), delay)
 
 
 def read_path(path, *, tip, dt: float, noise: float = 1e-6, jerk: float | None = None) -> np.ndarray:
@@ -668,6 +674,7 @@ def load_dataset(
     jerk=None,
     dropouts: bool = True,
     delay: float | None = None,
+    causal: bool = False,
     split_at_gaps: bool = False,
     episode_seconds: float | None = None,
     fractions=None,
@@ -682,7 +689,9 @@ def load_dataset(
     shorter than an episode are left out (default episode: the shortest of the files' longest
     stretches). Each step is paired with the input sent ``delay`` s before
     (in whole periods: ``Dataset.delay_steps``); None: the median of the recordings' estimates
-    (``estimate_delay``, kept in ``Dataset.delays``). Then the recordings are cut into episodes of
+    (``estimate_delay``, kept in ``Dataset.delays``). ``causal``: states as ``read`` makes them
+    with it, what the loop of a model trained on them sees (``control.loop``). Then the
+    recordings are cut into episodes of
     ``episode_seconds`` (default: the shortest recording; see ``episodes``). The split is by file,
     shuffled by ``seed``: every episode of a run lands in the same split (``Dataset.split_files``
     names them). ``fractions``: the (train, validation) shares of the files (``split_episodes``);
@@ -723,6 +732,7 @@ def load_dataset(
         seed=seed,
         version=RECORDINGS_VERSION,
         revision=LOADER_REVISION,
+        **({"causal": True} if causal else {}),  # the smoother's states keep the keys they always had
     )
 
     def compute() -> dict:
@@ -755,7 +765,7 @@ def load_dataset(
                 raise ValueError(f"{tables[0].source}: no stretch between long gaps makes a step, in any file")
             owners, runs = zip(*pieces)
         runs = [
-            _with_delay(_resample(run, period, max_gap, noise, jerk), delay)
+            _with_delay(_resample(run, period, max_gap, noise, jerk, causal), delay)
             for run in tqdm(runs, desc="smoothing recordings", **(shown | dict(unit="run")))
         ]
         if delay is None:
@@ -814,6 +824,7 @@ def load_dataset(
             resting_files=_names(resting),
             noise=np.median([run.noise for run in runs], 0),  # (k,) the smoother's levels, for the loop's filter
             jerk=np.median([run.jerk for run in runs], 0),
+            causal=np.bool_(causal),
         )
 
     if data_dir is None:
@@ -989,6 +1000,7 @@ def _dataset(arrays: dict, key: str) -> Dataset | None:
             split_files={name: tuple(str(f) for f in arrays[f"{name}_files"]) for name in SPLITS},
             resting_files=tuple(str(f) for f in arrays["resting_files"]),
             levels=(np.asarray(arrays["noise"], float), np.asarray(arrays["jerk"], float)),
+            causal=bool(arrays["causal"]),
         )
     except (KeyError, TypeError, ValueError):
         return None

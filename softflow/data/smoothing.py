@@ -91,10 +91,12 @@ def _fit_levels(times, values, *, noise: float | None = None, jerk: float | None
     return float(grid_noise[best]), float(grid_jerk[best])
 
 
-def smooth(times, values, query, *, noise: float | None = None, jerk: float | None = None):
+def smooth(times, values, query, *, noise: float | None = None, jerk: float | None = None, causal: bool = False):
     """Position and velocity (Q,) each at the query times (Q,) from one axis's frames: values
     (N,) taken at nondecreasing times (N,), all finite. Queries must lie between the first and
-    the last frame: the smoother bridges gaps, it does not extrapolate. Returns (positions,
+    the last frame: the smoother bridges gaps, it does not extrapolate. ``causal``: the filter's
+    estimate from the frames up to each query alone (what a control loop can know then; the
+    loop's ``control.loop.Estimator``), not the smoother's from every frame. Returns (positions,
     velocities, noise, jerk), the last two the levels used (fitted when not given)."""
     times, _ = as_real_array(times, "times", (None,))
     values, _ = as_real_array(values, "values", (len(times),))
@@ -116,6 +118,9 @@ def smooth(times, values, query, *, noise: float | None = None, jerk: float | No
     _, (x_pred, P_pred, x_filt, P_filt) = _filter(
         merged_times, merged_values, np.array([noise]), np.array([jerk]), keep=True
     )
+    if causal:
+        at_query = x_filt[:, 0][np.argsort(order, kind="stable")[len(times) :]]  # (Q, 3)
+        return at_query[:, 0], at_query[:, 1], noise, jerk
     F, _ = transition(np.diff(merged_times))  # (M-1, 3, 3)
     gains = np.linalg.solve(P_pred[1:, 0], F @ P_filt[:-1, 0]).transpose(0, 2, 1)  # P_filt F^T P_pred^-1
     smoothed = np.empty((len(merged_times), 3))  # the RTS backward pass, means only

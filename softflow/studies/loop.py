@@ -203,10 +203,17 @@ def models(cell: dict, profile_name: str) -> dict:
     )
 
 
-def summarise(rows: pd.DataFrame) -> pd.DataFrame:
-    """The rule, one row per model: the closed loop's mean RMSE over the open loop's with its
-    two-way bootstrap interval, the one-sided t-test of the per-reference ratios below GOAL with
-    Holm's adjustment over the models, the worst reference's ratio, and whether the goal is met."""
+def summarise(rows: pd.DataFrame) -> dict[str, pd.DataFrame]:
+    """The study's tables: ``tracking``, each model's mean RMSE per loop and family with its
+    two-way bootstrap interval; ``rule``, one row per model: the closed loop's mean RMSE over the
+    open loop's with its interval, the one-sided t-test of the per-reference ratios below GOAL
+    with Holm's adjustment over the models, the worst reference's ratio, and whether the goal is
+    met."""
+    tracking = stats.summarise(rows, by=("model", "loop", "family")) if len(rows) else pd.DataFrame()
+    return dict(tracking=tracking, rule=_rule(rows))
+
+
+def _rule(rows: pd.DataFrame) -> pd.DataFrame:
     out = []
     for model, own in rows.groupby("model", sort=False):
         opened, closed = (stats.seed_reference_grid(own[own.loop == loop], "rmse_mm") for loop in LOOPS)

@@ -232,14 +232,14 @@ def study_delay(profile_name: str, workdir: Path) -> int:
     return int(cached_arrays(workdir, "trunk-delay", spec, compute)["delay_steps"])
 
 
-def paired_run(name: str, observation: str, delay: int, seconds: float | None, workdir: Path):
+def paired_run(name: str, observation: str, delay: int, seconds: float | None, workdir: Path, causal: bool = False):
     """Inputs (T, 6) and states (T+1, 2k) of one run, step t paired with the input sent ``delay``
-    periods before it (its first ``seconds`` only, None: all of it; cached)."""
+    periods before it (its first ``seconds`` only, None: all of it; ``causal``: the filter's
+    states, as ``recordings.read`` makes them; cached)."""
 
     def compute():
-        run = recordings.read(
-            _file(name), inputs=list(INPUTS), tip=list(OBSERVATIONS[observation]), max_gap=MAX_GAP, delay=delay * DT
-        )
+        columns = dict(inputs=list(INPUTS), tip=list(OBSERVATIONS[observation]))
+        run = recordings.read(_file(name), **columns, max_gap=MAX_GAP, delay=delay * DT, causal=causal)
         u, states = run.pairs()
         if run.dt != DT:
             raise ValueError(f"{name}: a period of {run.dt} s; the trunk's runs are at {DT} s")
@@ -249,6 +249,7 @@ def paired_run(name: str, observation: str, delay: int, seconds: float | None, w
         return dict(u=u, states=states)
 
     spec = dict(run=name, observation=observation, delay=delay, seconds=seconds, version=recordings.LOADER_REVISION)
+    spec |= {"causal": True} if causal else {}  # the smoother's states keep their keys
     arrays = cached_arrays(workdir, "trunk-run", spec, compute)
     return arrays["u"], arrays["states"]
 

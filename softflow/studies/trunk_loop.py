@@ -1,8 +1,10 @@
 """What the loop's parts (``control.loop``) do on the ASL trunk's held-out run, random_2, with
 every model part fitted on the training run, random_1: how far the loop's filter (the offline
 smoother's forward pass) lies from the smoother's states, how its estimate drifts while a point
-goes without fresh frames, and how far each predictor's state d periods ahead lies from the
-smoother's. ``make loop-parts`` writes the tables (``figures/bench/loop_parts_trunk.csv``)."""
+goes without fresh frames, how far each predictor's state d periods ahead lies from the
+smoother's, and the per-step input error of the trunk study's MLP (trunk_v2, paper, seed 0,
+trained on the smoother's states) and of the same trained on the filter's, each fed either. ``make
+loop-parts`` writes the tables (``figures/bench/loop_parts_trunk.csv``)."""
 
 from __future__ import annotations
 
@@ -11,10 +13,14 @@ import pandas as pd
 import torch
 
 from softflow.control.loop import Estimator, Predictor, fresh_frames, point_matrix
+from softflow.control.planning import Controller
 from softflow.data import recordings
 from softflow.data.dataset import Dataset
 from softflow.machine import description
-from softflow.studies.trunk import DT, MAX_GAP, OBSERVATIONS, TRAINING_RUN, _file
+from softflow.studies import trunk_v2
+from softflow.studies.study import recorded_cell_model
+from softflow.studies.sweep import SWEEPS_DIR
+from softflow.studies.trunk import DT, INPUTS, MAX_GAP, OBSERVATIONS, TRAINING_RUN, _file, study_delay
 
 HELD_OUT = "random_2"
 HORIZONS = (0, 5, 10, 15, 20, 22, 25, 30)  # periods
@@ -74,8 +80,31 @@ def measure(observation: str) -> pd.DataFrame:
             ("predictor", "constant velocity", h, mm(now[:, :k] + h * DT * now[:, k:] - truth), "mm"),
             ("predictor", "linear forward model", h, mm(linear[:, :k] - truth), "mm"),
         ]
+    rows += input_errors(observation, frames, estimator, point_matrix(recordings.tip_points(columns), k))
     table = pd.DataFrame(rows, columns=["table", "what", "periods", "value", "unit"])
     return table.assign(observation=observation, delay_steps=d, machine=description())
+
+
+def input_errors(observation: str, frames: np.ndarray, estimator: Estimator, same_point) -> list[tuple]:
+    """The trunk study's seed-0 MLP (trained where missing), and the same trained on the filter's
+    states (``causal``), on random_2's steps, each paired with the input sent the study's delay
+    before it: RMS error per input (degrees) fed the smoother's states and fed the filter's."""
+    workdir, grid = SWEEPS_DIR / "trunk_v2", trunk_v2.GRID["paper"]
+    delay = study_delay("paper", workdir)
+    run = recordings.read(_file(HELD_OUT), inputs=list(INPUTS), tip=list(OBSERVATIONS[observation]), max_gap=MAX_GAP)
+    u, smoothed = run.pairs(delay)  # (T-d, 6), (T-d+1, 2k)
+    filtered_states = filtered(estimator, same_point, frames)[0][delay : delay + len(smoothed)]
+    steps = slice(SETTLE, None)
+    out = []
+    for trained_on, causal in (("smoother", False), ("filter", True)):
+        dataset = trunk_v2.training_set(observation, delay, grid, "paper", workdir, causal=causal)
+        model, _ = recorded_cell_model(dict(model="mlp", seed=0), grid, "paper", dataset, workdir, "cpu")
+        controller = Controller(model, "mlp", robot=None, gravity=None, workspace_margin=None)
+        for fed, states in (("smoother", smoothed), ("filter", filtered_states)):
+            planned = controller.step(states[:-1], states[1:], clip=False)  # (T-d, 6)
+            error = float(np.sqrt(np.mean((planned[steps] - u[steps]) ** 2)))
+            out.append(("input error", f"trained on the {trained_on}'s states, fed the {fed}'s", 0, error, "deg"))
+    return out
 
 
 def main(out="figures/bench/loop_parts_trunk.csv") -> None:

@@ -224,13 +224,16 @@ def referee_plan(name: str, u: np.ndarray, mean_input: np.ndarray) -> np.ndarray
 
 
 # ---------------------------------------------------------------------------- data and judges
-def _paired(name: str, observation: str, delay: int, grid: TrunkV2Grid, workdir: Path):
-    return trunk.paired_run(name, observation, delay, grid.seconds, workdir)
+def _paired(name: str, observation: str, delay: int, grid: TrunkV2Grid, workdir: Path, causal: bool = False):
+    return trunk.paired_run(name, observation, delay, grid.seconds, workdir, causal)
 
 
-def training_set(observation: str, delay: int, grid: TrunkV2Grid, profile_name: str, workdir: Path) -> data.Dataset:
-    """The training runs cut into 2-s episodes, the last 15 % of each run's validating."""
-    pieces = [trunk.episodes(*_paired(n, observation, delay, grid, workdir)) for n in TRAINING_RUNS]
+def training_set(
+    observation: str, delay: int, grid: TrunkV2Grid, profile_name: str, workdir: Path, causal: bool = False
+) -> data.Dataset:
+    """The training runs cut into 2-s episodes, the last 15 % of each run's validating (``causal``:
+    the filter's states, for a model of the loop; not the study's)."""
+    pieces = [trunk.episodes(*_paired(n, observation, delay, grid, workdir, causal)) for n in TRAINING_RUNS]
     u, states = (np.concatenate(parts) for parts in zip(*pieces))  # (E, 200, 6), (E, 201, 2k)
     position = np.concatenate([np.arange(len(p[0])) / len(p[0]) for p in pieces])  # within its run
     return data.Dataset(
@@ -239,13 +242,14 @@ def training_set(observation: str, delay: int, grid: TrunkV2Grid, profile_name: 
         train=np.flatnonzero(position < 1 - trunk.VALIDATION),
         val=np.flatnonzero(position >= 1 - trunk.VALIDATION),
         test=np.zeros(0, int),
-        key=f"trunk_v2-{observation}-{profile_name}-d{delay}-r{recordings.LOADER_REVISION}",
+        key=f"trunk_v2-{observation}-{profile_name}-d{delay}-r{recordings.LOADER_REVISION}" + "-causal" * causal,
         robot=None,
         gravity=None,
         dt=trunk.DT,
         delay_steps=delay,
         input_columns=trunk.INPUTS,
         tip_columns=trunk.OBSERVATIONS[observation],
+        causal=causal,
     )
 
 
