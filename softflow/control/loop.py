@@ -13,12 +13,15 @@ Each period, in order:
    delay), so the input sent now acts on the step from x_{t+d}; a linear forward model of the
    recordings, fitted to their training episodes, carries the estimate d periods ahead through
    the d inputs already in flight.
-3. **Step** (``control.step.Step``): u = g(x_{t+d}, x*_{t+d+1}), the model's step with each
-   input's limits from the recordings (``InputLimits``).
+3. **Step** (``control.step.Step``): u = g(x', x*_{t+d+1} + c), the model's step with each
+   input's limits from the recordings (``InputLimits``), where x' is the wanted x*_{t+d} moved
+   towards the predicted state by ``Feedback.blend`` (0 by default: a one-step inverse shown a
+   state far from the wanted path asks for transitions it never learnt) plus c, and c is
+   ``Feedback.integral`` times the integrated position error now, x*_t - x_t (integral action).
 4. **Safety**: u moves from the last input sent by at most each input's largest change per
    period in the recordings; the safe input (by default the recordings' median) is sent
-   instead while the estimate is outside the workspace, not yet known, or stale (no fresh
-   frame of some point for ``watchdog`` s).
+   instead while the estimate, or the state predicted d periods ahead, is outside the
+   workspace, not yet known, or stale (no fresh frame of some point for ``watchdog`` s).
 """
 
 from __future__ import annotations
@@ -83,9 +86,10 @@ class InputLimits:
 @dataclass(frozen=True)
 class Feedback:
     """How the loop corrects: ``blend`` (positions, velocities), the share of the predicted state's
-    departure from the wanted one the model is shown; ``integral`` (1/s), the gain of the integrated
-    predicted position error added to the wanted states. The default, chosen on a pilot before the
-    loop study's first row (docs/assumptions.md): integral action alone, as the twin's loop."""
+    departure from the wanted one the model is shown (a model shown estimates trains on the
+    filter's states, ``causal=True``); ``integral`` (1/s), the gain of the integrated position
+    error now added to the wanted states. The default, chosen on a pilot before the loop study's
+    first row (docs/assumptions.md): integral action alone, as the twin's loop."""
 
     blend: tuple[float, float] = (0.0, 0.0)
     integral: float = 2.0
