@@ -245,6 +245,8 @@ def test_the_exported_loop_drives_a_delayed_rod_from_the_cli_graph(trained, tmp_
     assert stop.value.code == 2 and "holds no rest run" in capsys.readouterr().err
     meta = {p.key: p.value for p in onnx.load(path).metadata_props}
     assert json.loads(meta["input_columns"]) == ["u1", "u2"] and json.loads(meta["delay_steps"]) == DELAY
+    assert json.loads(meta["input_units"]) == [None, None]  # u1, u2 declare none; l1_mm would be "mm"
+    assert [recordings.column_unit(c) for c in ("l1_mm", "u1_N", "u_1", "x")] == ["mm", "N", None, None]
     assert json.loads(meta["safe_input"]) == pytest.approx(np.median(data.u[data.train].reshape(-1, 2), 0), abs=1e-6)
     runner = example()
     graph = runner.LoopGraph(path)

@@ -15,6 +15,7 @@ from onnx import helper
 from softflow.control.loop import MEMORY, Loop
 from softflow.control.planning import Controller
 from softflow.control.step import graph
+from softflow.data.recordings import column_unit
 from softflow.store import atomic_write
 
 
@@ -41,7 +42,8 @@ def export_loop(loop: Loop, path) -> Path:
     ``stale``, ``sent``; outputs ``next_x``, ...; the first call gets ``start_memory`` from the
     metadata), and sends ``u`` (1, m) float32; ``holding`` says it is the safe input. The
     metadata are the step's (``export_onnx``) and the loop's: the period, the observed and input
-    columns, each input's rate limit, the watchdog, the session's anchor and the start memory."""
+    columns, the inputs' units where their names declare them (``l1_mm``), each input's rate
+    limit, the watchdog, the session's anchor and the start memory."""
     if not isinstance(loop, Loop):
         raise ValueError(f"expected a Loop (softflow.control.loop_of); got {type(loop).__name__}")
     controller, period = loop.controller, loop.period
@@ -56,6 +58,7 @@ def export_loop(loop: Loop, path) -> Path:
         key: json.dumps(value)
         for key, value in dict(
             input_columns=list(loop.input_columns),
+            input_units=[column_unit(name) for name in loop.input_columns],  # null: the name declares none
             input_rate=period.rate.tolist(),
             watchdog_periods=period.watchdog,
             anchor_m=period.anchor.tolist(),

@@ -856,6 +856,26 @@ def load_dataset(
 
 SPLITS = ("train", "val", "test")
 SUSPECT_UNITS = {"_mm": "millimetres", "_cm": "centimetres", "_in": "inches"}  # column suffixes the loader never reads
+UNIT_SUFFIXES = (
+    "mm",
+    "cm",
+    "m",
+    "N",
+    "Nm",
+    "deg",
+    "rad",
+    "V",
+    "A",
+    "Pa",
+    "kPa",
+    "bar",
+)  # an input column's name_<unit>
+
+
+def column_unit(name: str) -> str | None:
+    """The unit an input column's name declares (``l1_mm``: "mm", ``u1_N``: "N"), or None."""
+    *_, suffix = name.rpartition("_")
+    return suffix if "_" in name and suffix in UNIT_SUFFIXES else None
 
 
 def describe(
