@@ -1,12 +1,17 @@
 """The rig of the loop study (hardware.mocap): a command acts DELAY after it is sent, the camera
 holds and loses frames at the shares it is given, and its recordings read back as the loader's."""
 
+import contextlib
+import io
+
 import numpy as np
 import pytest
+from test_recorded_loop import example
+from test_recordings import tiny_training
 
-from softflow import recordings
+from softflow import cli, recordings
 from softflow.hardware import mocap
-from softflow.hardware.gap import TYPICAL_GAP
+from softflow.hardware.gap import FRICTION_GAP, TYPICAL_GAP
 from softflow.hardware.recorder import motor_columns
 from softflow.rod.robots import DT, HW_ROBOT
 
@@ -42,3 +47,26 @@ def test_recorded_runs_read_back_with_the_delay_the_rig_has(tmp_path):
     # the actuator's 20 periods plus the motors' and the rod's own lag; never less than the delay
     assert round(mocap.DELAY / DT) <= data.delay_steps <= round(mocap.DELAY / DT) + 5
     assert mocap.record_runs(tmp_path, 6, 4.0, TYPICAL_GAP, seed=0) == paths  # present: kept, not redone
+
+
+def test_the_example_runs_the_exported_loop_on_the_twin_behind_the_rigs_faults(tmp_path, monkeypatch):
+    """examples/run_loop.py, numpy and onnxruntime alone, on the loop study's rig: the graph of an
+    MLP trained (ci budget shrunk) on the rig's own recordings by the CLI."""
+    runs = tmp_path / "runs"
+    mocap.record_runs(runs, 6, 4.0, TYPICAL_GAP, seed=0)
+    tiny_training(monkeypatch, tmp_path / "checkpoints")
+    options = ["--recordings", str(runs), "--profile", "ci", "--inputs", ",".join(motor_columns(HW_ROBOT))]
+    options += ["--delay", f"{mocap.DELAY}", "--fractions", "0.5,0.25"]
+    with contextlib.redirect_stdout(io.StringIO()):
+        cli.main(["train", "mlp", *options])
+        cli.main(["export", "mlp", *options, "--loop", "--onnx", str(tmp_path / "loop.onnx")])
+    runner = example()
+    graph = runner.LoopGraph(tmp_path / "loop.onnx")
+    assert graph.meta["input_units"] == ["mm", "mm", "mm"]
+    reference = recordings.read(runs / "run0005.csv", inputs=motor_columns(HW_ROBOT), delay=mocap.DELAY).states
+    rig = mocap.MocapRig(FRICTION_GAP, seed=1)
+    u, holding, late = runner.run(graph, rig, reference[:150], paced=False)
+    low, high, rate = (np.array(graph.meta[k]) for k in ("input_low", "input_high", "input_rate"))
+    assert u.shape == (149, 3) and late == 0
+    assert ((u >= low - 1e-4) & (u <= high + 1e-4)).all() and (np.abs(np.diff(u, axis=0)) <= rate + 1e-4).all()
+    assert holding.mean() < 0.1 and np.isfinite(np.stack(rig.states)).all()
