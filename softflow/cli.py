@@ -178,6 +178,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     recorded.add_argument("--recordings", type=Path, metavar="DIR", help="the recordings the model was trained on")
     recorded.add_argument("--reference", type=Path, metavar="PATH.csv", help="the desired path")
+    recorded.add_argument(
+        "--check",
+        action="store_true",
+        help="refuse a plan that leaves each input's range or largest change per period in the training "
+        "recordings (without it such a plan is written with a warning)",
+    )
     _recording_options(recorded)
 
     sub = verb(
@@ -579,7 +585,7 @@ def _planned_shape(args):
 
 
 def _plan(args):
-    if args.recordings is not None or args.reference is not None:
+    if args.recordings is not None or args.reference is not None or args.check:
         return _plan_recorded(args)
     options = ("inputs", "tip", "dt", "delay", "max_gap")
     given = [f"--{option.replace('_', '-')}" for option in options if getattr(args, option) is not None]
@@ -604,6 +610,11 @@ def _plan_recorded(args):
     controller, dataset = _recorded_controller(args)
     states = recordings.read_path(args.reference, tip=list(dataset.tip_columns), dt=dataset.dt)  # (T+1, 2k)
     u = controller.plan(states)  # (T, m), advanced by the delay
+    if problems := control.InputLimits.of(dataset).violations(u, dataset.input_columns):
+        said = "; ".join(problems)
+        if args.check:
+            raise ValueError(f"--check: the plan leaves what the training recordings did: {said}; nothing written")
+        warnings.warn(f"the plan leaves what the training recordings did: {said} (--check refuses such a plan)")
     frame = pd.DataFrame(u, columns=list(dataset.input_columns))
     frame.insert(0, "time_s", np.arange(len(u)) * dataset.dt)
     write_text(args.out, frame.to_csv(index=False, float_format="%.6f"))

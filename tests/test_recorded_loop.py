@@ -112,6 +112,16 @@ def test_the_limits_are_what_the_training_recordings_did():
         loop.InputLimits.of(data, safe_input=[5.0, 1.0])
 
 
+def test_a_plan_is_checked_against_the_limits_of_the_recordings():
+    limits = loop.InputLimits(np.array([0.0, -1.0]), np.array([3.0, 1.0]), np.array([0.5, 2.0]), np.zeros(2))
+    inside = np.array([[0.0, -1.0], [0.5, 1.0], [1.0, -1.0]])  # on the range's ends, at the rate's limit
+    assert limits.violations(inside) == []
+    beyond = np.array([[0.0, 0.0], [3.5, 0.0], [2.5, 0.5]])  # 3.5 above 3; steps of 3.5 and 1 beyond 0.5
+    assert limits.violations(beyond, ["l1_mm", "l2_mm"]) == [
+        "l1_mm: 1 of 3 samples outside 0 to 3, 2 steps faster than 0.5 per period"
+    ]
+
+
 @pytest.fixture(scope="module")
 def rig(tmp_path_factory):
     """Three runs of the simulated rod whose inputs act 60 ms after they are sent, their Dataset,

@@ -21,7 +21,7 @@ EXPORTS = {
         "score",
     ],
     "onnx_export": ["export_onnx", "export_loop"],
-    "loop": ["Loop", "loop_of"],
+    "loop": ["Loop", "loop_of", "InputLimits", "Feedback"],
 }
 SUBMODULES = ["metrics", "floor", "estimation", "closed_loop"]
 __getattr__, __dir__, __all__ = facade(__name__, EXPORTS, SUBMODULES)

@@ -82,6 +82,22 @@ class InputLimits:
             raise ValueError(f"rate must be a positive change per period, one for all inputs or one each; got {rate!r}")
         return cls(low, high, rate, safe)
 
+    def violations(self, u, names=None) -> list[str]:
+        """What in a plan u (T, m) leaves these limits, one sentence per input that does (samples
+        outside its range, steps faster than its rate); [] for a plan inside them."""
+        u = np.asarray(u, np.float64)
+        names = names or [f"input {i + 1}" for i in range(u.shape[1])]
+        out = []
+        for i, name in enumerate(names):
+            outside = int(np.sum((u[:, i] < self.low[i]) | (u[:, i] > self.high[i])))
+            fast = int(np.sum(np.abs(np.diff(u[:, i])) > self.rate[i]))
+            if outside or fast:
+                out.append(
+                    f"{name}: {outside} of {len(u)} samples outside {self.low[i]:g} to {self.high[i]:g}, {fast} steps "
+                    f"faster than {self.rate[i]:g} per period"
+                )
+        return out
+
 
 @dataclass(frozen=True)
 class Feedback:
