@@ -15,7 +15,7 @@ from softflow.profiles import Profile
 from softflow.report import study_tables
 from softflow.report.tables import read_sweep
 from softflow.store import write_text
-from softflow.studies import one_step, trunk, trunk_v2
+from softflow.studies import loop, one_step, trunk, trunk_v2
 
 
 @dataclass(frozen=True)
@@ -40,6 +40,7 @@ SUMMARIES = {
         True,
     ),
     "one_step": (one_step.summarise, "15_one_step_", ("rmse", "parity", "tip_win", "collapse"), False),
+    "loop": (loop.summarise, "16_loop_", ("tracking", "rule"), False),
 }
 
 
@@ -63,7 +64,7 @@ def _per_study_files() -> dict[str, StudyTable]:
         "13_per_step.csv": StudyTable(("recorded",), study_tables.recorded_per_step),
     }
     for study, (summarise, prefix, parts, index) in SUMMARIES.items():
-        for suffix in ("", "_paper"):  # notebooks 14 and 15 write their paper tables under both names
+        for suffix in ("", "_paper"):  # notebooks 14 to 16 write their paper tables under both names
             for part in parts:
                 files[f"{prefix}{part}{suffix}.csv"] = StudyTable((study,), summarise, index, part)
     return files

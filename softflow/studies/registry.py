@@ -94,6 +94,6 @@ STUDIES = {
     "recorded": Study(recorded.cells, recorded.run, recorded.models, notebook="13_recorded_runs.ipynb"),
     "trunk": Study(trunk.cells, trunk.run, trunk.models, notebook="14_real_robot.ipynb"),
     "trunk_v2": Study(trunk_v2.cells, trunk_v2.run, trunk_v2.models, notebook="14_real_robot.ipynb"),
-    "loop": Study(loop.cells, loop.run, loop.models),
+    "loop": Study(loop.cells, loop.run, loop.models, notebook="16_closed_loop_recorded.ipynb"),
     "one_step": Study(one_step.cells, one_step.run, one_step.models, notebook="15_one_step.ipynb"),
 }
