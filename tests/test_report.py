@@ -618,6 +618,6 @@ def test_a_study_whose_rows_come_from_several_machines_says_so(profile):
     write_sweep(profile, "one", pd.DataFrame(dict(score=[1.0, 2.0], machine=["AMD EPYC", "AMD EPYC"])))
     write_sweep(profile, "mixed", pd.DataFrame(dict(score=[1.0, 2.0, 3.0], machine=["Xeon", None, "Xeon"])))
     text = "\n".join(report.page.machines_section(profile))
-    assert "| mixed | Xeon (2 rows), not recorded (1 row) |" in text and "| old | not recorded (2 rows) |" in text
+    assert "| mixed | Xeon (2 rows), unknown (1 row) |" in text and "| old | unknown (2 rows) |" in text
     assert "| one | AMD EPYC (2 rows) |" in text
     assert "different or unknown machines: mixed." in text

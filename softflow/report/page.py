@@ -780,7 +780,7 @@ def machines_section(profile: Profile) -> list[str]:
         "## Where the rows were computed",
         "",
         "The CPU of each study's shipped rows, as the rows record it (`machine`; rows made before that column "
-        f"was added say nothing). Tables that mix rows of different or unknown machines: {', '.join(mixed) or 'none'}.",
+        f"was added say unknown). Tables that mix rows of different or unknown machines: {', '.join(mixed) or 'none'}.",
         "",
         markdown(table),
         "",

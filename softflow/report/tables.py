@@ -101,9 +101,9 @@ def read_sweep(profile: Profile, study: str) -> pd.DataFrame:
 
 def machine_counts(rows: pd.DataFrame) -> pd.Series:
     """How many of ``rows`` each CPU computed (their ``machine`` column), most first; rows from
-    before the column existed count as "not recorded"."""
-    named = rows["machine"] if "machine" in rows else pd.Series("not recorded", index=rows.index)
-    return named.fillna("not recorded").value_counts()
+    before the column existed say "unknown", as the shipped rows do."""
+    named = rows["machine"] if "machine" in rows else pd.Series("unknown", index=rows.index)
+    return named.fillna("unknown").value_counts()
 
 
 def computed_rows(profile: Profile, study: str) -> pd.DataFrame:
