@@ -58,7 +58,8 @@ def main():
     )
     for name, value in results.items():
         print(f"{name}: {value:.2f}" if isinstance(value, float) else f"{name}: {value}")
-    write_results("reproduce_fresh_clone", results)
+    cloned = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=CLONE, capture_output=True, text=True)
+    write_results("reproduce_fresh_clone", results, measured=cloned.stdout.strip())  # commits may land meanwhile
     if code == 0:
         shutil.copy(CLONE / "figures" / "bench" / "reproduce.csv", RESULTS / "reproduce.csv")
     changed = subprocess.run(["git", "status", "--short"], cwd=CLONE, capture_output=True, text=True).stdout

@@ -28,10 +28,11 @@ def _flat(results: dict, prefix: str = "") -> dict:
     return out
 
 
-def write_results(name: str, results: dict) -> Path:
-    """figures/bench/<name>.csv: quantity, value, machine, date (UTC), commit."""
+def write_results(name: str, results: dict, measured: str | None = None) -> Path:
+    """figures/bench/<name>.csv: quantity, value, machine, date (UTC), commit (``measured``: the
+    commit measured where it is not this checkout's, e.g. a clone's)."""
     RESULTS.mkdir(parents=True, exist_ok=True)
-    stamp = dict(machine=description(), date=datetime.now(UTC).strftime("%Y-%m-%d"), commit=commit())
+    stamp = dict(machine=description(), date=datetime.now(UTC).strftime("%Y-%m-%d"), commit=measured or commit())
     rows = [dict(quantity=k, value=v, **stamp) for k, v in _flat(results).items()]
     path = RESULTS / f"{name}.csv"
     pd.DataFrame(rows).to_csv(path, index=False)
