@@ -723,9 +723,9 @@ def _export_loop(args):
     period = loop.period
     print(
         f"{args.model} (recordings {args.recordings}): the loop's period as one ONNX graph, every "
-        f"{dataset.dt:g} s: a frame of {', '.join(dataset.tip_columns)} and the reference {period.delay + 1} periods "
-        f"ahead -> u ({', '.join(loop.input_columns)}); delay {period.delay} periods, safe input after "
-        f"{period.watchdog} periods without a fresh frame"
+        f"{dataset.dt:g} s: a frame of {', '.join(dataset.tip_columns)} and the reference now, {period.delay} and "
+        f"{period.delay + 1} periods ahead -> u ({', '.join(loop.input_columns)}); delay {period.delay} periods, "
+        f"safe input after {period.watchdog} periods without a fresh frame"
     )
     print(path)
 

@@ -202,6 +202,15 @@ def fresh_frames(frame, last_frame, same_point):
     return torch.isfinite(frame) & (repeated < same_point.sum(0))
 
 
+def track(estimator: Estimator, same_point, frame, x, P, last_frame, stale):
+    """One period's estimate from the newest ``frame`` (B, k): the filter folds in the fresh
+    columns (``fresh_frames``) and predicts across the others; returns (x, P, the last frame
+    received, the periods since each column's last fresh frame)."""
+    fresh = fresh_frames(frame, last_frame, same_point)  # (B, k)
+    x, P = estimator(frame, x, P, fresh)
+    return x, P, torch.where(torch.isfinite(frame), frame, last_frame), torch.where(fresh, 0, stale + 1)
+
+
 MEMORY = ("x", "P", "last_frame", "stale", "sent", "integral")  # a period's memory, the graph's order
 
 
@@ -247,11 +256,7 @@ class Period(nn.Module):
         self.register_buffer("rate", torch.as_tensor(limits.rate, dtype=torch.float32))  # (m,)
 
     def forward(self, frame, reference, x, P, last_frame, stale, sent, integral):
-        frame = frame + self.anchor
-        found, fresh = torch.isfinite(frame), fresh_frames(frame, last_frame, self.same_point)  # (B, k) each
-        x, P = self.estimator(frame, x, P, fresh)
-        stale = torch.where(fresh, 0, stale + 1)
-        last_frame = torch.where(found, frame, last_frame)
+        x, P, last_frame, stale = track(self.estimator, self.same_point, frame + self.anchor, x, P, last_frame, stale)
         now = torch.cat([x[..., 0], x[..., 1]], -1)  # (B, d): positions, then velocities
         ahead = self.predictor(now, sent[:, sent.shape[1] - self.delay :].double()) if self.delay else now
         ahead, (wanted, now_wanted, next_wanted) = ahead.float(), reference.unbind(1)

@@ -35,12 +35,12 @@ def export_onnx(controller: Controller, path) -> Path:
 
 def export_loop(loop: Loop, path) -> Path:
     """Write ``loop``'s period (``control.loop_of``) as one ONNX graph at ``path`` (replaced);
-    returns the path. A robot's program calls it once per
-    period with the newest frame of the observed columns (``frame``, (1, k) float64, NaN where
-    none came), the reference state wanted delay + 1 periods ahead (``reference``, (1, d)
-    float32) and the memory the last call returned (inputs ``x``, ``P``, ``last_frame``,
-    ``stale``, ``sent``; outputs ``next_x``, ...; the first call gets ``start_memory`` from the
-    metadata), and sends ``u`` (1, m) float32; ``holding`` says it is the safe input. The
+    returns the path. A robot's program calls it once per period with the newest frame of the
+    observed columns (``frame``, (1, k) float64, NaN where none came), the reference states
+    wanted now, delay and delay + 1 periods ahead (``reference``, (1, 3, d) float32) and the
+    memory the last call returned (inputs named by ``loop.MEMORY``, outputs ``next_`` + each; the
+    first call gets ``start_memory`` from the metadata), and sends ``u`` (1, m) float32;
+    ``holding`` says it is the safe input. The
     metadata are the step's (``export_onnx``) and the loop's: the period, the observed and input
     columns, the inputs' units where their names declare them (``l1_mm``), each input's rate
     limit, the watchdog, the session's anchor and the start memory."""

@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 import torch
 
-from softflow.control.loop import Estimator, Predictor, fresh_frames, point_matrix
+from softflow.control.loop import Estimator, Predictor, point_matrix, track
 from softflow.control.planning import Controller
 from softflow.data import recordings
 from softflow.data.dataset import Dataset
@@ -37,10 +37,7 @@ def filtered(estimator: Estimator, same_point, frames: np.ndarray) -> tuple[np.n
     states, staleness = [], []
     with torch.no_grad():
         for frame in torch.as_tensor(frames)[:, None]:
-            fresh = fresh_frames(frame, last, same_point)
-            x, P = estimator(frame, x, P, fresh)
-            stale = torch.where(fresh, 0, stale + 1)
-            last = torch.where(torch.isfinite(frame), frame, last)
+            x, P, last, stale = track(estimator, same_point, frame, x, P, last, stale)
             states.append(torch.cat([x[0, :, 0], x[0, :, 1]]).numpy())
             staleness.append(stale[0].numpy())
     return np.array(states), np.array(staleness)
