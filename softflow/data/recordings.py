@@ -559,11 +559,7 @@ def read(
     bad file is a ValueError naming it, and the row and column where there is one."""
     _check_options(dt, max_gap, noise, jerk, delay)
     path = Path(path)
-    try:
-        content = path.read_bytes()
-    except OSError as error:
-        raise ValueError(f"{path}: cannot read the recording ({error})") from error
-    table = _table(str(path), content, inputs, tip, dropouts)
+    table = _table(str(path), _content(path, "the recording"), inputs, tip, dropouts)
     period = table.command_period if dt is None else dt
     return _with_delay(_resample(table, period, max_gap, noise, jerk, causal), delay)
 
@@ -578,10 +574,7 @@ def read_path(path, *, tip, dt: float, noise: float = 1e-6, jerk: float | None =
     if dt is None:
         raise ValueError("dt must be the recordings' period in s; got None")
     path = Path(path)
-    try:
-        content = path.read_bytes()
-    except OSError as error:
-        raise ValueError(f"{path}: cannot read the path ({error})") from error
+    content = _content(path, "the path")
     source = str(path)
     frame = _frame(source, content)
     frame.columns = [str(name) for name in frame.columns]
@@ -616,11 +609,7 @@ def rest_offset(session, reference, *, tip=None) -> np.ndarray:
     never change."""
     means, columns = [], []
     for path in (reference, session):
-        try:
-            content = Path(path).read_bytes()
-        except OSError as error:
-            raise ValueError(f"{path}: cannot read the rest run ({error})") from error
-        table = _table(str(path), content, None, tip, True)
+        table = _table(str(path), _content(path, "the rest run"), None, tip, True)
         if _excited(table):
             raise ValueError(f"{path}: its inputs change; a rest run holds every input constant")
         means.append(np.nanmean(table.tip, 0))
@@ -628,6 +617,14 @@ def rest_offset(session, reference, *, tip=None) -> np.ndarray:
     if columns[0] != columns[1]:
         raise ValueError(f"{session}: tip columns {list(columns[1])} differ from {list(columns[0])} of {reference}")
     return means[0] - means[1]
+
+
+def _content(path, what: str) -> bytes:
+    """The bytes of the file at ``path``, or a ValueError naming it and ``what`` it was to be."""
+    try:
+        return Path(path).read_bytes()
+    except OSError as error:
+        raise ValueError(f"{path}: cannot read {what} ({error})") from error
 
 
 def recording_files(paths_or_folder) -> list[Path]:
@@ -710,12 +707,7 @@ def load_dataset(
             f"fractions must be None or (train, validation) shares in (0, 1) summing below 1; got {fractions!r}"
         )
     files = recording_files(paths_or_folder)
-    contents = []
-    for path in files:
-        try:
-            contents.append(path.read_bytes())
-        except OSError as error:
-            raise ValueError(f"{path}: cannot read the recording ({error})") from error
+    contents = [_content(path, "the recording") for path in files]
     spec = dict(
         files=[hashlib.sha256(content).hexdigest() for content in contents],
         inputs=inputs,
