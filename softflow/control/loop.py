@@ -32,11 +32,10 @@ from dataclasses import dataclass
 
 import numpy as np
 import onnx
-import onnxruntime as ort
 import torch
 from torch import nn
 
-from softflow.control.step import Step, export_graph
+from softflow.control.step import Step, export_graph, real_time_session
 from softflow.data.dataset import Dataset
 from softflow.data.recordings import tip_points
 from softflow.data.smoothing import PRIOR_ACCELERATION, PRIOR_SPEED, transition
@@ -385,10 +384,7 @@ class GraphLoop:
     after each call. What examples/run_loop.py does on a robot, batched."""
 
     def __init__(self, loop: Loop, batch: int = 1):
-        options = ort.SessionOptions()
-        options.intra_op_num_threads = options.inter_op_num_threads = 1
-        made = loop.graph().SerializeToString()
-        self.session = ort.InferenceSession(made, options, providers=["CPUExecutionProvider"])
+        self.session = real_time_session(loop.graph())
         self.memory = {name: value.numpy() for name, value in loop.period.memory(batch).items()}
         self.holding = np.ones(batch, bool)
 

@@ -170,16 +170,20 @@ def export_graph(module: nn.Module, example: tuple, input_names: list, output_na
     return program.model_proto
 
 
+def real_time_session(model: onnx.ModelProto) -> ort.InferenceSession:
+    """``model`` in onnxruntime as a control loop runs it: on the CPU, one thread, sequential."""
+    options = ort.SessionOptions()
+    options.intra_op_num_threads = options.inter_op_num_threads = 1
+    options.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
+    return ort.InferenceSession(model.SerializeToString(), options, providers=["CPUExecutionProvider"])
+
+
 class BoundGraph:
     """A step module's graph in onnxruntime for a real-time loop: one thread, sequential, one
     transition's inputs and outputs bound once to arrays that each call reuses."""
 
     def __init__(self, step: Step):
-        options = ort.SessionOptions()
-        options.intra_op_num_threads = options.inter_op_num_threads = 1
-        options.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
-        made = graph(step).SerializeToString()
-        self.session = ort.InferenceSession(made, options, providers=["CPUExecutionProvider"])
+        self.session = real_time_session(graph(step))
         d, m = step.model.dims.state, step.model.dims.inputs
         self.x_t, self.x_next = np.zeros((1, d), np.float32), np.zeros((1, d), np.float32)
         self.u, self.outside = np.zeros((1, m), np.float32), np.zeros(1, bool)
