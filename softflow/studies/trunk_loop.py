@@ -20,7 +20,7 @@ from softflow.machine import description
 from softflow.studies import trunk_v2
 from softflow.studies.study import recorded_cell_model
 from softflow.studies.sweep import SWEEPS_DIR
-from softflow.studies.trunk import DT, INPUTS, MAX_GAP, OBSERVATIONS, TRAINING_RUN, _file, study_delay
+from softflow.studies.trunk import DT, MAX_GAP, OBSERVATIONS, TRAINING_RUN, _file, study_delay
 
 HELD_OUT = "random_2"
 HORIZONS = (0, 5, 10, 15, 20, 22, 25, 30)  # periods
@@ -77,20 +77,20 @@ def measure(observation: str) -> pd.DataFrame:
             ("predictor", "constant velocity", h, mm(now[:, :k] + h * DT * now[:, k:] - truth), "mm"),
             ("predictor", "linear forward model", h, mm(linear[:, :k] - truth), "mm"),
         ]
-    rows += input_errors(observation, frames, estimator, point_matrix(recordings.tip_points(columns), k))
+    rows += input_errors(observation, test, estimate)
     table = pd.DataFrame(rows, columns=["table", "what", "periods", "value", "unit"])
     return table.assign(observation=observation, delay_steps=d, machine=description())
 
 
-def input_errors(observation: str, frames: np.ndarray, estimator: Estimator, same_point) -> list[tuple]:
+def input_errors(observation: str, test: recordings.Recording, estimate: np.ndarray) -> list[tuple]:
     """The trunk study's seed-0 MLP (trained where missing), and the same trained on the filter's
-    states (``causal``), on random_2's steps, each paired with the input sent the study's delay
-    before it: RMS error per input (degrees) fed the smoother's states and fed the filter's."""
+    states (``causal``), on random_2's steps (``test``, the loop's ``estimate`` (T+1, 2k) of it),
+    each paired with the input sent the study's delay before it: RMS error per input (degrees)
+    fed the smoother's states and fed the filter's."""
     workdir, grid = SWEEPS_DIR / "trunk_v2", trunk_v2.GRID["paper"]
     delay = study_delay("paper", workdir)
-    run = recordings.read(_file(HELD_OUT), inputs=list(INPUTS), tip=list(OBSERVATIONS[observation]), max_gap=MAX_GAP)
-    u, smoothed = run.pairs(delay)  # (T-d, 6), (T-d+1, 2k)
-    filtered_states = filtered(estimator, same_point, frames)[0][delay : delay + len(smoothed)]
+    u, smoothed = test.pairs(delay)  # (T-d, 6), (T-d+1, 2k)
+    filtered_states = estimate[delay : delay + len(smoothed)]
     steps = slice(SETTLE, None)
     out = []
     for trained_on, causal in (("smoother", False), ("filter", True)):
