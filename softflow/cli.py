@@ -72,7 +72,7 @@ FLAGS = {
     "inputs=[...]": "--inputs COLS",
     "pass delay=": "pass --delay",
     "pass other fractions (e.g. (1/3, 1/3) for three)": "pass --fractions (e.g. --fractions 0.34,0.34 for three)",
-    "longer than max_gap = ": "longer than --max-gap ",
+    "(max_gap = ": "(--max-gap ",
     "load_dataset(..., split_at_gaps=True)": "--split-at-gaps",
     "(dropouts=False keeps them)": "(in Python, recordings.read(..., dropouts=False) keeps them)",
     "(or give noise and jerk)": "(record longer runs; in Python, or give noise and jerk)",

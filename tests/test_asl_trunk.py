@@ -135,7 +135,10 @@ def test_long_gaps_are_refused_with_all_disks_and_the_runs_cut_there_on_request(
     has no long gap."""
     path = CURATED / "random_2.csv.gz"
     levels = dict(noise=1e-5, jerk=100.0)  # fixed: seconds instead of a minute; the gaps do not depend on them
-    with pytest.raises(ValueError, match=r"rows 10197-10230, column 'x2_m': 0\.330 s between frames .*count as lost"):
+    with pytest.raises(
+        ValueError,
+        match=r"rows 10197-10230, column 'x2_m': 0\.330 s between frames .*judged lost there: rows .* \(held\)",
+    ):
         recordings.read(path, tip=DISKS, delay=0.0, **levels)
     files = [path, CURATED / "circles.csv.gz", CURATED / "payload_100g.csv.gz"]
     options = dict(tip=DISKS, delay=0.22, episode_seconds=10.0, fractions=(1 / 3, 1 / 3), data_dir=None, **levels)

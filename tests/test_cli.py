@@ -102,7 +102,7 @@ def test_a_refused_recording_names_the_flags_that_help(tmp_path, capsys):
         table.to_csv(tmp_path / f"run{i}.csv", index=False)
     code, err = exit_code(capsys, "train", "mlp", "--recordings", str(tmp_path), "--profile", "ci")
     assert code == 2 and err.startswith("softflow train: error: ") and "usage" not in err
-    assert "longer than --max-gap 0.2 s" in err and "or let --split-at-gaps cut it" in err
+    assert "the 0.2 s bridged (--max-gap 0.2 s)" in err and "or let --split-at-gaps cut it" in err
 
 
 def test_an_output_that_is_a_directory_is_refused(tmp_path, capsys):

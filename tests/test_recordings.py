@@ -463,10 +463,66 @@ def test_held_frames_are_bridged_up_to_max_gap_and_refused_beyond_it(tmp_path):
     true = np.stack([np.interp(run.times, t, truth[:, i]) for i in range(3)], -1)
     assert np.abs(run.states[:, :3] - true).max() < 1e-3  # the held value is 2 mm off at the end of the hold
     held_run(tmp_path / "long.csv", 100, 25)
-    with pytest.raises(ValueError, match=r"long\.csv: rows 99-125, column 'x_m': 0\.260 s between frames.*25 of the "):
+    refusal = r"long\.csv: rows 99-125, column 'x_m': 0\.260 s between frames.*the 0\.2 s bridged \(max_gap = 0\.2 s\)"
+    with pytest.raises(
+        ValueError, match=refusal + r".*judged lost there: rows 100-124 repeat the frame before exactly"
+    ):
         recordings.read(tmp_path / "long.csv")
     kept = recordings.read(tmp_path / "long.csv", dropouts=False, delay=0.0)
     assert kept.frozen.tolist() == [0, 0, 0] and len(kept.inputs) == 200
+
+
+def slow_camera(path, hz: float, *, pixel: float = 0.0, held=()):
+    """60 s of a planar arm's tip (x_m, y_m moving 0.1 m/s; z_m constant), still for its first
+    10 s, seen by a camera at ``hz`` with 0.5 mm of noise and 10 % jitter in its frame times,
+    rounded to ``pixel`` m where given, beside 50 Hz commands; the frames numbered ``held``
+    repeat the one before. Returns the file's row of every frame (F,), their times (F,) and tip (F, 3)."""
+    rng = np.random.default_rng(int(hz))
+    t = np.arange(0, 60, 1 / hz) + rng.uniform(-0.05, 0.05, int(np.ceil(60 * hz))) / hz
+    t[0] = 0.0
+    moving = np.maximum(t - 10, 0)[:, None]
+    tip = np.concatenate([0.3 + 0.04 * np.sin([0.9, 1.7] * moving), np.full((len(t), 1), 0.05)], 1)  # (F, 3)
+    tip[:, :2] += 5e-4 * rng.standard_normal((len(t), 2))
+    tip = np.round(tip / pixel) * pixel if pixel else tip
+    for frame in held:
+        tip[frame] = tip[frame - 1]
+    commands = np.arange(0, 60, 0.02)
+    table = pd.concat(
+        [
+            pd.DataFrame({"time_s": commands, "u1": np.sin(commands), "u2": np.cos(commands)}),
+            pd.DataFrame({"time_s": t, **dict(zip(TIP_NAMES, tip.T))}),
+        ],
+        ignore_index=True,
+    ).sort_values("time_s", kind="stable", ignore_index=True)
+    table.to_csv(path, index=False)
+    return np.flatnonzero(table.x_m.notna()), t, tip
+
+
+@pytest.mark.parametrize("hz", [12, 30])
+@pytest.mark.parametrize("pixel", [0.0, 1e-3])
+def test_a_slow_camera_loses_only_the_frames_its_tracker_held(tmp_path, hz, pixel):
+    """Three frames held in a row are bridged at any rate (0.33 s at 12 Hz: longer than max_gap, but
+    five of its frames are not), a planar rig's constant coordinate is no held frame, and a coarse
+    camera's still tip repeating for real is none either (a 1 mm pixel against 0.5 mm of noise)."""
+    held = [300, 301, 302, 500]
+    _, t, tip = slow_camera(tmp_path / "run.csv", hz, pixel=pixel, held=held)
+    lost = recordings.lost_frames(t, tip, TIP_NAMES)[0].any(1)
+    if pixel:  # a hold is told from a still tip only where the tip moves several pixels a frame
+        assert lost.sum() <= len(held) + 0.02 * len(t)
+    else:
+        np.testing.assert_array_equal(np.flatnonzero(lost), held)
+    run = recordings.read(tmp_path / "run.csv", delay=0.0)
+    assert run.frozen.tolist() == [lost.sum()] * 3 and run.times[-1] - run.times[0] > 59
+
+
+def test_a_refusal_names_the_frames_judged_lost_and_the_gap_its_camera_bridges(tmp_path):
+    rows, _, _ = slow_camera(tmp_path / "run.csv", 12, held=range(300, 306))  # 0.58 s: six frames held
+    with pytest.raises(ValueError) as refused:
+        recordings.read(tmp_path / "run.csv", delay=0.0)
+    assert f"rows {rows[299]}-{rows[306]}, column 'x_m'" in str(refused.value)
+    assert "longer than the 0.5 s bridged (5 lost frames of its camera)" in str(refused.value)
+    held = ", ".join(str(row) for row in rows[300:306])
+    assert f"judged lost there: rows {held} repeat the frame before exactly (held)" in str(refused.value)
 
 
 def gapped_run(path, gap=(1.0, 1.5), seconds: float = 4.0):

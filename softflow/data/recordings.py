@@ -11,10 +11,11 @@ What is estimated, on a regular grid of period ``dt`` (the commands' period by d
 starts at the first command once every tip column has a frame and ends where the frames or the
 commands end: the tip position and velocity per axis, by the smoother of ``smoothing``, and the
 input of each step, the mean over it of the commands, each held until the next (zero-order
-hold). A run of lost frames up to ``max_gap`` s is bridged by the smoother; a longer one is
-refused, naming its rows, never filled: cut the file there, or let ``load_dataset`` cut it
-(``split_at_gaps``). Frames a tracker held (a point exactly repeating its last frame) or that
-jumped for one frame are lost frames too (``lost_frames``). Each recording carries its
+hold). A run of lost frames up to ``max_gap`` s, or up to BRIDGED_FRAMES frames of a slower
+camera, is bridged by the smoother; a longer one is refused, naming its rows and the frames judged
+lost there, never filled: cut the file there, or let ``load_dataset`` cut it (``split_at_gaps``).
+Frames a tracker held (a point exactly repeating its last frame while it moves) or that jumped
+for one frame are lost frames too (``lost_frames``). Each recording carries its
 input-to-motion delay (``estimate_delay``); the Dataset pairs each step with the input sent that
 many periods before it.
 """
@@ -39,20 +40,26 @@ from softflow.store import DATA_DIR, cache_file, cached_arrays, content_key
 
 # bump when what the twin's recordings load as changes (the recorded study's rows key on it)
 RECORDINGS_VERSION = 1
-# bump when any recording's arrays change: it keys the cached datasets only. 2: held and jumped
-# frames are lost frames, and the pairs carry the input-to-motion delay (the twin's runs have
-# neither: their arrays at delay=0 are those of revision 1)
-LOADER_REVISION = 2
+# bump when any recording's arrays may change: it keys the cached datasets and the rows of the
+# studies of real runs. 2: held and jumped frames are lost frames, and the pairs carry the
+# input-to-motion delay (the twin's runs have neither: their arrays at delay=0 are those of
+# revision 1). 3: a repeat that the camera's resolution explains is no held frame, and a slow
+# camera's run of BRIDGED_FRAMES lost frames is bridged (every shipped recording loses the same
+# frames as in revision 2, so the rows keyed on 2 were carried over)
+LOADER_REVISION = 3
 TIME = "time_s"
 TIP = ("x_m", "y_m", "z_m")
 SUFFIXES = (".csv", ".csv.gz", ".parquet")
-MAX_GAP = 0.2  # s: the longest run of lost frames the smoother bridges (6 frames at 30 fps)
+MAX_GAP = 0.2  # s: the longest run of lost frames the smoother bridges, at least (6 frames at 30 fps)
 # A frame departing from the chord between its neighbouring frames by more than a constant
 # acceleration of JUMP_ACCELERATION would (a h1 h2 / 2: 2.5 mm at 100 Hz, 28 mm at 30 fps) while
 # the neighbours lie nearer each other than that departure is a jump (a missed frame). The ASL
 # trunk's disks reach 6-12 m/s^2 (99.9th percentile over 50 ms; 13-22 at most) and its frames
 # have 0.003-0.008 mm of noise; the twin's camera noise alone makes at most 13 m/s^2 at 30 fps.
 JUMP_ACCELERATION = 50.0  # m/s^2
+HELD, JUMPED = 1, 2  # why a frame was lost (lost_frames)
+BRIDGED_FRAMES = 5  # a slow camera's run of this many lost frames is bridged whatever max_gap says
+STILL_QUANTA = 3  # a point moving by at most this many steps of its resolution is still (_held)
 JUMP_NOISE = 10.0  # and by more than this many times the point's median departure (noisy cameras)
 MAX_DELAY = 0.5  # s: the longest input-to-motion delay estimated (at most a quarter of the run)
 DELAY_FOLDS = 5  # contiguous blocks of the run, each held out once when scoring a delay
@@ -109,8 +116,14 @@ class Recording:
 @dataclass(frozen=True)
 class _Table:
     """The checked columns of one file: times (R,), inputs (R, m) with NaN rows where no command
-    was given, tip (R, k) with NaN where no frame was taken or it was lost (``lost``, (R, k): held
-    or jumped frames, counted per column in ``frozen`` and ``jumps``), and the commands' period (s)."""
+    was given, tip (R, k) with NaN where no frame was taken or it was lost (``lost``, (R, k): HELD
+    or JUMPED frames, counted per column in ``frozen`` and ``jumps``), the commands' period (s)
+    and each tip column's camera's (k,) (s: the median interval between its frames as written)."""
+
+    def bridged(self, max_gap: float) -> np.ndarray:
+        """The longest run without a frame the smoother bridges, per tip column (k,) s: max_gap,
+        or BRIDGED_FRAMES lost frames in a row of that column's camera where it is slower."""
+        return np.maximum(max_gap, (BRIDGED_FRAMES + 1) * np.nan_to_num(self.frame_period))
 
     source: str
     times: np.ndarray
@@ -119,6 +132,7 @@ class _Table:
     input_columns: tuple[str, ...]
     tip_columns: tuple[str, ...]
     command_period: float
+    frame_period: np.ndarray
     lost: np.ndarray
     frozen: np.ndarray
     jumps: np.ndarray
@@ -224,8 +238,9 @@ def _table(source: str, content: bytes, inputs=None, tip=None, dropouts: bool = 
     _check_time_unit(times, source)
     p = np.stack([_numbers(frame, name, source) for name in tip_columns], -1)  # (R, k)
     _check_tip_unit(p, tip_columns, source)
-    lost, frozen, jumps = lost_frames(times, p, tip_columns) if dropouts else (np.zeros(p.shape, bool), 0, 0)
-    p = np.where(lost, np.nan, p)
+    frame_period = np.array([_median_step(times[np.isfinite(column)]) for column in p.T])  # (k,) s
+    lost, frozen, jumps = _judged(times, p, tip_columns) if dropouts else (np.zeros(p.shape, np.int8), 0, 0)
+    p = np.where(lost > 0, np.nan, p)
     for i, name in enumerate(tip_columns):
         frames = np.flatnonzero(np.isfinite(p[:, i]))
         if len(frames) == 0:
@@ -267,10 +282,16 @@ def _table(source: str, content: bytes, inputs=None, tip=None, dropouts: bool = 
         input_columns,
         tip_columns,
         period,
+        frame_period,
         lost,
         np.zeros(k, int) + frozen,
         np.zeros(k, int) + jumps,
     )
+
+
+def _median_step(times: np.ndarray) -> float:
+    """The median interval (s) between the times (N,) given, NaN for fewer than two."""
+    return float(np.median(np.diff(times))) if len(times) > 1 else math.nan
 
 
 def _check_time_unit(times: np.ndarray, source: str) -> None:
@@ -319,23 +340,52 @@ def lost_frames(times, tip, tip_columns) -> tuple[np.ndarray, np.ndarray, np.nda
     frozen (k,), jumps (k,)), the counts per tip column (its point's).
 
     Frozen: a point whose coordinates all exactly repeat its previous frame's (motion capture
-    holding its last value; real noise never repeats all of them). Jump: among the frames left,
+    holding its last value; real noise never repeats all of them), unless the camera's
+    resolution explains it (``_held``). Jump: among the frames left,
     one departing from the chord between its neighbouring frames by more than both a constant
     JUMP_ACCELERATION would (a h1 h2 / 2 for steps h1, h2) and JUMP_NOISE times the point's median
     departure, while the neighbours lie nearer each other than that departure (out and back)."""
+    why, frozen, jumps = _judged(times, tip, tip_columns)
+    return why > 0, frozen, jumps
+
+
+def _judged(times, tip, tip_columns) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``lost_frames`` with why each frame was lost: (R, k) HELD, JUMPED or 0 (kept, or no frame)."""
     times, tip = np.asarray(times, float), np.asarray(tip, float)
-    lost = np.zeros(tip.shape, bool)  # (R, k)
+    lost = np.zeros(tip.shape, np.int8)  # (R, k): 0 kept (or no frame), HELD or JUMPED
     frozen, jumps = np.zeros(tip.shape[1], int), np.zeros(tip.shape[1], int)
     for columns in tip_points(tip_columns):
         point = tip[:, columns]  # (R, c)
         rows = np.flatnonzero(np.isfinite(point).all(1))  # the point's frames
-        held = np.concatenate([np.zeros(min(len(rows), 1), bool), (np.diff(point[rows], axis=0) == 0).all(1)])
+        held = _held(point[rows])
         kept = rows[~held]
         jumped = kept[1:-1][_jumped(times[kept], point[kept])]
-        lost[np.ix_(rows[held], columns)] = True
-        lost[np.ix_(jumped, columns)] = True
+        lost[np.ix_(rows[held], columns)] = HELD
+        lost[np.ix_(jumped, columns)] = JUMPED
         frozen[columns], jumps[columns] = held.sum(), len(jumped)
     return lost, frozen, jumps
+
+
+def _held(point: np.ndarray) -> np.ndarray:
+    """Which of a point's frames (F, c) a tracker held: (F,) bool. A frame repeating the one
+    before exactly is held unless the camera's resolution explains it: where the point moves by
+    at most STILL_QUANTA of its coordinates' resolution (the smallest step each ever makes) into
+    the repeats and out of them, a still point seen by a coarse camera (pixels, a logger's few
+    digits) repeats for real. A point that never moves holds every frame after its first."""
+    steps = np.abs(np.diff(point, axis=0))  # (F-1, c)
+    repeat = np.concatenate([np.zeros(min(len(point), 1), bool), (steps == 0).all(1)])  # (F,)
+    moved = steps > 0
+    if not repeat.any() or not moved.any():
+        return repeat
+    quantum = np.array([s[m].min() if m.any() else np.inf for s, m in zip(steps.T, moved.T)])  # (c,)
+    still = np.concatenate([[True], (steps <= STILL_QUANTA * quantum).all(1), [True]])  # (F+1,): step into frame i
+    starts = np.flatnonzero(repeat & ~np.concatenate([[False], repeat[:-1]]))  # first frame of each run of repeats
+    ends = np.flatnonzero(repeat & ~np.concatenate([repeat[1:], [False]]))  # its last
+    held = repeat.copy()
+    for start, end in zip(starts, ends):
+        if still[start - 1] and still[end + 1]:  # the step into the frame repeated and the step out of the run
+            held[start : end + 1] = False
+    return held
 
 
 def _jumped(t: np.ndarray, point: np.ndarray) -> np.ndarray:
@@ -377,16 +427,34 @@ def _grid(table: _Table, dt: float) -> np.ndarray | None:
 
 
 def _long_gaps(table: _Table, max_gap: float, within=(-np.inf, np.inf)) -> list[tuple[int, int, int]]:
-    """(column, row before, row after) of every run of lost frames longer than max_gap s that
-    reaches into the interval ``within``, in column order."""
+    """(column, row before, row after) of every run of lost frames longer than the smoother
+    bridges (``_Table.bridged``) that reaches into the interval ``within``, in column order."""
     gaps = []
-    for i, column in enumerate(table.tip.T):
+    for i, (column, bridged) in enumerate(zip(table.tip.T, table.bridged(max_gap))):
         rows = np.flatnonzero(np.isfinite(column))
         t = table.times[rows]
-        longer = np.diff(t) > max_gap * (1 + 1e-9)  # a gap of max_gap itself is bridged, whatever the rounding
+        longer = np.diff(t) > bridged * (1 + 1e-9)  # a gap of max_gap itself is bridged, whatever the rounding
         long = np.flatnonzero(longer & (t[1:] > within[0]) & (t[:-1] < within[1]))
         gaps += [(i, rows[j], rows[j + 1]) for j in long]
     return gaps
+
+
+def _judged_lost(why: np.ndarray, first_row: int) -> str:
+    """The rows among ``why`` (the lost codes of rows from ``first_row`` on) judged lost, and why,
+    as the end of a refusal ("" where none was)."""
+    parts = [
+        f"rows {_spans(first_row + np.flatnonzero(why == code))} {reason}"
+        for code, reason in ((HELD, "repeat the frame before exactly (held)"), (JUMPED, "jumped for one frame"))
+        if (why == code).any()
+    ]
+    return f"; judged lost there: {'; '.join(parts)} (dropouts=False keeps them)" if parts else ""
+
+
+def _spans(rows: np.ndarray) -> str:
+    """Increasing row numbers as runs: [3, 4, 5, 9] is "3-5, 9"."""
+    breaks = np.flatnonzero(np.diff(rows) > 1)
+    firsts, lasts = rows[np.append(0, breaks + 1)], rows[np.append(breaks, len(rows) - 1)]
+    return ", ".join(str(a) if a == b else f"{a}-{b}" for a, b in zip(firsts, lasts))
 
 
 def _resample(table: _Table, dt: float, max_gap: float, noise, jerk, causal: bool = False) -> Recording:
@@ -399,21 +467,18 @@ def _resample(table: _Table, dt: float, max_gap: float, noise, jerk, causal: boo
             f"{source}: the commands and the frames of every tip column overlap for less than one step of {dt} s"
         )
     for i, a, b in _long_gaps(table, max_gap, (grid[0], grid[-1]))[:1]:
-        held = int(table.lost[a + 1 : b, i].sum())
-        why = (
-            f"; {held} of the frames there repeat the one before or jump, and count as lost (dropouts=False keeps them)"
-            if held
-            else ""
-        )
+        bridged = table.bridged(max_gap)[i]
+        limit = f"max_gap = {max_gap} s" if bridged == max_gap else f"{BRIDGED_FRAMES} lost frames of its camera"
         raise ValueError(
             f"{source}: rows {a}-{b}, column {table.tip_columns[i]!r}: {times[b] - times[a]:.3f} s between frames "
-            f"({times[a]} to {times[b]} s), longer than max_gap = {max_gap} s; cut the file there, or let "
-            f"load_dataset(..., split_at_gaps=True) cut it{why}"
+            f"({times[a]} to {times[b]} s), longer than the {bridged:.3g} s bridged ({limit}); cut the file "
+            f"there, or let load_dataset(..., split_at_gaps=True) cut it{_judged_lost(table.lost[a + 1 : b, i], a + 1)}"
         )
     frames = [np.flatnonzero(np.isfinite(column)) for column in tip.T]
     k = len(frames)
     states, levels = np.empty((len(grid), 2 * k)), []  # (T+1, 2k)
-    for i, rows in enumerate(frames):
+    shown = dict(desc=f"smoothing {Path(source).name}", unit="column", disable=None, leave=False)  # a terminal only
+    for i, rows in enumerate(tqdm(frames, **shown)):
         try:
             states[:, i], states[:, k + i], *level = smooth(
                 times[rows], tip[rows, i], grid, noise=noise, jerk=jerk, causal=causal
@@ -438,7 +503,7 @@ def _resample(table: _Table, dt: float, max_gap: float, noise, jerk, causal: boo
 
 
 def _pieces(table: _Table, dt: float, max_gap: float) -> list[_Table]:
-    """The table cut at every run of lost frames longer than max_gap s (in any tip column): the
+    """The table cut at every run of lost frames longer than bridged (in any tip column): the
     stretches between them that make at least one step of dt, each named by its time span."""
     gaps = sorted((table.times[a], table.times[b]) for _, a, b in _long_gaps(table, max_gap))
     merged = []  # overlapping gaps of several columns make one
@@ -550,9 +615,11 @@ def read(
     """One recorded run (a CSV, gzip-compressed CSV or Parquet file) on a regular grid of period
     ``dt`` (s; default: the commands' period). ``inputs`` and ``tip`` name the columns (default:
     those starting with ``u``; those of x_m, y_m, z_m present). ``noise`` (m) and ``jerk``
-    (m/s^3/sqrt(Hz)) fix the smoother's levels; by default each tip column's are fitted. Held and
-    jumped frames are lost frames (``lost_frames``; ``dropouts=False`` keeps every frame, e.g. for
-    noise-free simulated data, whose still tip repeats exactly). ``delay`` (s) is the
+    (m/s^3/sqrt(Hz)) fix the smoother's levels; by default each tip column's are fitted. The
+    smoother bridges a run of lost frames up to ``max_gap`` s long, or up to BRIDGED_FRAMES lost
+    frames of a camera slower than that. Held and jumped frames are lost frames (``lost_frames``;
+    ``dropouts=False`` keeps every frame, e.g. for noise-free simulated data, whose still tip
+    repeats exactly). ``delay`` (s) is the
     input-to-motion delay the recording carries (None: ``estimate_delay``); its arrays are never
     shifted, ``pairs()`` pairs them. ``causal``: the states are the smoother's filter run forward
     (each from the frames up to it: what a control loop knows then) instead of the smoother's. A
@@ -924,7 +991,7 @@ def describe(
             long_gaps="; ".join(gaps),
         )
         if gaps:
-            row["problem"] = f"lost frames for longer than {max_gap:g} s: read refuses it (split it at gaps)"
+            row["problem"] = "lost frames for longer than the smoother bridges: read refuses it (split it at gaps)"
         elif delays:
             run = _resample(table, table.command_period, max_gap, None, None)
             row["delay_ms"] = 1e3 * estimate_delay(run)
