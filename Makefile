@@ -118,6 +118,7 @@ bench: $(STAMP) $(ELASTICA)  # PyElastica is a benchmark-only dependency, in its
 	$(PY) benchmarks/bench_sweep.py
 	$(PY) benchmarks/bench_loop.py
 	$(PY) benchmarks/bench_recorded_loop.py  # the loop study's models: its paper sweep first
+	$(PY) benchmarks/bench_quick_profile.py  # what the ci and quick budgets buy on the trunk's runs
 
 # What a newcomer waits for (long: about as much as make test and a ci reproduce together):
 # make venv + make test on a fresh clone, and each notebook's ci run.

@@ -5,7 +5,7 @@
   softflow train --robot hw --gravity horizontal rf-fwd   a hardware-twin model
   softflow train --ship rf-fwd                         retrain a shipped model into checkpoints/ (maintainers)
   softflow check my_runs/                              what the loader finds in each recording, and its split
-  softflow train mlp --recordings my_runs/ --profile ci   a model of recorded runs (docs/recordings.md)
+  softflow train mlp --recordings my_runs/ --profile quick   a model of recorded runs (docs/recordings.md)
   softflow sweep table1 --profile paper                a study's cells as Dask tasks (docs/sweeps.md)
   softflow models [--cards]                            the shipped checkpoints (and their model cards)
   softflow plan rf-fwd --shape circle --out u.csv      planned inputs for a shape, one row per sample
@@ -34,7 +34,7 @@ from softflow.control.loop import WATCHDOG
 from softflow.data import recordings
 from softflow.models.checkpoints import checkpoint_path
 from softflow.models.registry import CONTROLLERS, MODELS
-from softflow.profiles import PROFILES, get_profile
+from softflow.profiles import PROFILES, STUDY_PROFILES, get_profile
 from softflow.report import model_cards, tables
 from softflow.rod.dynamics import GRAVITY_DIRECTIONS, Simulator
 from softflow.rod.robots import HW_ROBOT, ROBOTS, SIM_ROBOT, TWO_SEGMENT_ROD, rod_folder
@@ -140,7 +140,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     sub = verb("sweep", _sweep, "run a study's cells as Dask tasks; the result CSV is the last line", sweep.__doc__)
     sub.add_argument("study", choices=sorted(sweep.STUDIES))
-    sub.add_argument("--profile", required=True, choices=sorted(PROFILES))
+    sub.add_argument("--profile", required=True, choices=STUDY_PROFILES)
     cluster = sub.add_mutually_exclusive_group()
     cluster.add_argument("--scheduler-file", help="run on the cluster whose scheduler wrote this file")
     cluster.add_argument("--scheduler", metavar="ADDRESS", help="run on the cluster at this address (tcp://host:8786)")

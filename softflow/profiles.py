@@ -1,4 +1,5 @@
-"""Named run sizes: "ci" finishes in minutes on 2 cores, "paper" is the real experiment."""
+"""Named run sizes: "ci" finishes in minutes on 2 cores, "quick" trains a usable model of your
+own runs in minutes on a laptop, "paper" is the real experiment."""
 
 from __future__ import annotations
 
@@ -98,6 +99,9 @@ FIXED_BUDGET = {
     "paper": TrainConfig(epochs=40, steps_per_epoch=500, patience=40),
 }
 
+# The profiles the studies' grids are sized for ("quick" is for a user's own models, not studies).
+STUDY_PROFILES = ("ci", "paper")
+
 PROFILES = {
     "ci": Profile(
         "ci",
@@ -114,6 +118,12 @@ PROFILES = {
         frictions=(0.15,),  # FRICTION_GAP's (tests/test_friction.py checks the others)
         held_out_delays=False,
         computes_studies=True,
+    ),
+    "quick": Profile(
+        "quick",
+        n_episodes=600,
+        train=TrainConfig(epochs=10, steps_per_epoch=250, warmup_steps=200, val_samples=10000, patience=4),
+        per_step_train=TrainConfig(epochs=20, steps_per_epoch=250, warmup_steps=200, val_samples=10000, patience=5),
     ),
     "paper": Profile(
         "paper",

@@ -94,6 +94,17 @@ def test_a_model_not_trained_on_the_recordings_names_the_command(ci_recordings):
         control.load_controller("lstm", "ci", recordings=runs)
 
 
+def test_the_profile_is_part_of_a_models_name_for_every_verb(ci_recordings, capsys, tmp_path):
+    """A model trained with the ci budget is not the quick profile's: plan asks for that one."""
+    runs = ci_recordings[0]
+    assert control.find_trained("mlp", "ci", recordings=ci_recordings[3])[0] is not None
+    argv = ["plan", "mlp", "--recordings", str(runs), "--profile", "quick"]
+    with pytest.raises(SystemExit) as stop:
+        cli.main([*argv, "--reference", str(tmp_path / "path.csv"), "--out", str(tmp_path / "u.csv")])
+    expected = f"train it with: softflow train mlp --profile quick --recordings {runs}"
+    assert stop.value.code == 2 and expected in capsys.readouterr().err
+
+
 def test_a_checkpoint_loaded_by_path_against_other_recordings_is_refused(trained):
     runs, _, outputs, data, _ = trained
     path = outputs["mlp"][-1]

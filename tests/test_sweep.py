@@ -250,8 +250,9 @@ def test_reading_the_shipped_rows_leaves_the_shipped_csv_as_it_was(tmp_path, swe
 def test_bad_input_is_refused():
     with pytest.raises(ValueError, match="study"):
         sweep.run_sweep("no-such-study", "ci", client=None, device="cpu")
-    with pytest.raises(ValueError, match="profile"):
-        sweep.run_sweep("smoke", "no-such-profile", client=None, device="cpu")
+    for profile in ("no-such-profile", "quick"):  # quick sizes a user's own models, no study's grid
+        with pytest.raises(ValueError, match="profile"):
+            sweep.run_sweep("smoke", profile, client=None, device="cpu")
     with pytest.raises(ValueError, match="device"):
         sweep.resolve_device("tpu")
     assert sweep.resolve_device("cpu") == "cpu" and sweep.resolve_device("auto") in ("cuda", "mps", "cpu")

@@ -30,7 +30,7 @@ from tqdm import tqdm
 
 from softflow.checks import check_choice
 from softflow.machine import cpu_model
-from softflow.profiles import get_profile
+from softflow.profiles import STUDY_PROFILES, get_profile
 from softflow.store import DATA_DIR, REPO, content_key, write_text
 from softflow.studies.registry import STUDIES
 
@@ -132,7 +132,7 @@ def run_sweep(
     hours first); the CSV still holds every cell's rows present, and ``missing`` counts the rest.
     """
     check_choice(study, "study", STUDIES)
-    get_profile(profile_name)
+    check_choice(profile_name, "profile", STUDY_PROFILES)
     shipped_csv = SHIPPED_RESULTS / f"{study}-{profile_name}.csv" if root is None else None
     root = Path(SWEEPS_DIR if root is None else root)
     workdir = root / study
