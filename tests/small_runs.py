@@ -7,6 +7,7 @@ import dataclasses
 import numpy as np
 import pandas as pd
 
+from softflow import profiles
 from softflow.profiles import Profile, TrainConfig
 
 SMALL = Profile("small", n_episodes=24, episode_seconds=2.0)
@@ -31,3 +32,17 @@ def assert_like_shipped(rows: pd.DataFrame, shipped: pd.DataFrame) -> None:
             )
         else:
             assert rows[column].astype(str).tolist() == shipped[column].astype(str).tolist(), column
+
+
+def report_profile(tmp_path, monkeypatch) -> Profile:
+    """A profile whose figures folder is under ``tmp_path``: the report reads its files and rows there."""
+    monkeypatch.setattr(profiles, "REPO", tmp_path)
+    profile = Profile("report-test", n_episodes=1)
+    profile.output_dir.mkdir(parents=True)
+    return profile
+
+
+def write_sweep(profile: Profile, study: str, rows: pd.DataFrame) -> None:
+    """A study's rows where the report reads them (as figures/sweeps/<study>-paper.csv ships)."""
+    (profile.output_dir / "sweeps").mkdir(exist_ok=True)
+    rows.to_csv(profile.output_dir / "sweeps" / f"{study}-{profile.name}.csv", index=False)

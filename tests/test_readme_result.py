@@ -5,7 +5,7 @@ import pandas as pd
 import pytest
 
 from softflow.profiles import get_profile
-from softflow.report import readme
+from softflow.report import readme, sections
 from softflow.store import REPO
 
 
@@ -13,6 +13,14 @@ def test_the_committed_block_is_what_the_shipped_rows_make():
     text = (REPO / "README.md").read_text()
     block = readme.result_block(get_profile("paper"))
     assert readme.with_block(text, block) == text, "README.md's result block is stale: run `make readme`"
+
+
+def test_the_block_is_table_i_and_one_line_per_study_linking_to_its_section():
+    block = readme.result_block(get_profile("paper")).splitlines()
+    assert len(block) - 2 <= 25  # the markers aside
+    studies = [line for line in block if line.startswith("- **")]
+    linked = [s.study for s in sections.sections(get_profile("paper"))[1:]]
+    assert [line.rsplit("#", 1)[1].removesuffix("))") for line in studies] == linked
 
 
 def test_a_block_replaces_only_what_lies_between_the_markers():
@@ -37,10 +45,9 @@ def test_the_words_are_the_verdict_tables_words():
         ),
         index=pd.MultiIndex.from_tuples([("tip", "shape"), ("tip+disk", "random")], names=["observation", "family"]),
     )
-    words = readme._two_segment(table)
+    words = [sections.difference(row) for _, row in table.iterrows()]
     assert [w["verdict"] for w in words] == ["RF lower (not after Holm)", "no ranking"]
     assert (words[0]["mm"], words[0]["interval"]) == ("-1.23", "[-2.00, -0.50]")
-    assert (words[1]["best_rf"], words[1]["best_baseline"]) == ("RF-FWD", "LSTM")
 
 
 def test_the_committed_speed_block_is_what_the_bench_csvs_make():

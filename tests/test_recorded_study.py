@@ -11,14 +11,14 @@ from collections import Counter
 import numpy as np
 import pandas as pd
 import pytest
-from small_runs import assert_like_shipped
+from small_runs import assert_like_shipped, report_profile, write_sweep
 
 from softflow import hardware
 from softflow.control import planning
 from softflow.data.references import HARDWARE_SHAPES
 from softflow.hardware import recorder
 from softflow.profiles import PROFILES, TrainConfig
-from softflow.report import page, study_tables
+from softflow.report import sections, study_tables
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import HW_ROBOT, U_MAX
 from softflow.studies import recorded, sweep
@@ -307,22 +307,22 @@ def test_the_model_rule_ranks_on_the_most_runs_and_sees_friction_change_the_winn
     assert list(table.verdict) == ["RF lower", "MLP lower"] and set(table.friction_changes) == {"yes"}
 
 
-def test_the_results_paragraph_says_each_verdict_whichever_way_and_on_how_many_cells():
-    paragraph = page.recorded_summary(
-        study_tables.recording_rule(rule_rows()), study_tables.recorded_model_rule(model_rule_rows()), 7, 78
+def test_the_answer_says_each_verdict_whichever_way_and_whether_friction_changes_the_best(tmp_path, monkeypatch):
+    profile = report_profile(tmp_path, monkeypatch)
+    keyed = lambda rows: rows.assign(key=rows.model + rows.gap + rows.runs.astype(str))  # noqa: E731
+    write_sweep(profile, "recorded", keyed(rule_rows()))
+    answer = sections.words(sections.recorded_section(profile), "answer")
+    assert "minus the simulator-trained RF-FWD is -1.95 to +0.05 mm over 2 configurations and sizes" in answer
+    assert "(no ranking in 1 of 2, recordings lower in 1 of 2)" in answer
+    write_sweep(profile, "recorded", keyed(model_rule_rows()))
+    answer = sections.words(sections.recorded_section(profile), "answer")
+    assert "The best RF variant minus the best baseline with the most recording is -2.00 to +2.00 mm" in answer
+    assert answer.endswith(
+        "(RF lower in 1 of 2, MLP lower in 1 of 2); friction changes which model is best (vertical)."
     )
-    assert "vertical, 12 runs: +0.05 mm [" in paragraph and "(no ranking)" in paragraph
-    assert "vertical, 60 runs: -1.95 mm [" in paragraph and "(recordings lower)" in paragraph
-    assert "vertical under the friction gap -2.00 mm [" in paragraph and "(RF against MLP: RF lower)" in paragraph
-    assert "friction changes which model is best (vertical)." in paragraph
-    assert paragraph.endswith("(7 of the study's 78 cells have rows.)")
-    friction = model_rule_rows().query("gap == 'friction'")
-    mlp = friction[(friction.model == "mlp") & (friction.runs == 60)].assign(gap="typical")
-    tie = pd.concat([friction, mlp, mlp.assign(model="rf")])  # without friction RF and MLP tie: no ranking
-    unanswered = page.recorded_summary(pd.DataFrame(), study_tables.recorded_model_rule(tie), 7, 78)
-    assert "whether friction changes the best model is unanswered (a gap without a ranking) (vertical)." in unanswered
-    nothing = page.recorded_summary(pd.DataFrame(), pd.DataFrame(), 0, 78)
-    assert "no comparison has rows of both its sides yet (0 of the study's 78 cells" in nothing
+    write_sweep(profile, "recorded", rule_rows().iloc[:0].assign(key=""))
+    nothing = sections.words(sections.recorded_section(profile), "answer")
+    assert nothing == "No comparison has rows of both its sides yet (0 cells have rows)."
 
 
 def test_the_spread_table_gives_each_training_set_its_ratio_to_the_floor():

@@ -108,17 +108,18 @@ def test_the_shipped_ci_rows_are_the_grid_and_the_recorded_inputs_are_the_judges
     assert set(trunk.spread(rows).index) == {"tip", "disks"}
 
 
-def test_the_results_paragraph_says_the_gate_each_verdict_and_the_spread():
-    from softflow.report import page
+def test_the_trunk_section_answers_by_its_registered_rule_and_says_it_is_withdrawn(tmp_path, monkeypatch):
+    from small_runs import report_profile, write_sweep
 
+    from softflow.report import sections
+
+    profile = report_profile(tmp_path, monkeypatch)
     rows = made_rows(naive_gap=4.0).assign(key=lambda r: r.model + r.observation + r.seed.astype(str), run="random_2")
-    spread = {"tip": (2.0, 1.0), "disks": (1.5, 1.5)}  # tip: twice its floor; every disk: at it
-    rows["conditional_spread"] = rows.observation.map(lambda o: spread[o][0])
-    rows["conditional_spread_floor"] = rows.observation.map(lambda o: spread[o][1])
-    paragraph = page.trunk_summary(trunk.summarise(rows), rows["key"].nunique(), 33)
-    assert "(11 of the study's 33 cells have rows)" in paragraph
-    assert "telling them apart on 1 of 1 families" in paragraph
-    assert "observing tip: f -" in paragraph and "(RF against MLP: RF lower)" in paragraph
-    assert "(RF against MLP: no ranking)" in paragraph
-    assert "tip 2.0x, disks 1.0x" in paragraph
-    assert "no cell has rows yet" in page.trunk_summary({}, 0, 33)
+    rows = rows.assign(conditional_spread=2.0, conditional_spread_floor=1.0)
+    write_sweep(profile, "trunk", rows)
+    section = sections.trunk_section(profile)
+    answer = sections.words(section, "answer")  # RF lower from the tip alone only: the registered "confirms"
+    assert answer.startswith(f"Withdrawn: by its registered rule {trunk.ANSWERS['confirms']}, but its judge")
+    assert "| tip f | rf | mlp |" in sections.table_text(section) and "RF lower" in sections.table_text(section)
+    write_sweep(profile, "trunk", rows.iloc[:0])
+    assert sections.words(sections.trunk_section(profile), "answer") == "0 cells have rows: no answer yet."

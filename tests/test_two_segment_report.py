@@ -6,9 +6,10 @@ redundancy figure (another u on the curve of u that reaches one tip point)."""
 import numpy as np
 import pandas as pd
 import pytest
+from small_runs import report_profile, write_sweep
 
 from softflow.data import least_norm_lift
-from softflow.report import page, study_tables
+from softflow.report import sections, study_tables
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import SIM_ROBOT, TWO_SEGMENT_ROD
 from softflow.rod.validation import arc_tip
@@ -96,15 +97,17 @@ def test_decision_rule_per_family_where_both_groups_have_rows(rows):
     assert shape.holm_p == pytest.approx(min(1.0, 2 * min(shape.t_p, differences.loc[("tip", "random"), "t_p"])))
 
 
-def test_the_results_paragraph_says_each_verdict_and_how_many_cells_it_rests_on(rows):
-    paragraph = page.two_segment_summary(study_tables.two_segment_differences(rows), 6, 25)
-    assert "observing the tip only, shape -1.00 mm [" in paragraph
-    assert "(RF against MLP: RF lower)" in paragraph
-    assert "random -0.33 mm [" in paragraph and "no ranking" in paragraph
-    assert "tip and the middle disk" not in paragraph  # no RF variant there yet
-    assert paragraph.endswith("(6 of the study's 25 cells have rows).")
-    nothing = page.two_segment_summary(study_tables.two_segment_differences(rows.iloc[:0]), 0, 25)
-    assert "no observation has rows of both an RF variant and a baseline yet (0 of the study's 25" in nothing
+def test_the_answer_says_each_verdict_whichever_way(rows, tmp_path, monkeypatch):
+    profile = report_profile(tmp_path, monkeypatch)
+    rows = rows.assign(key=rows.model + rows.observation + rows.seed.astype(str))
+    write_sweep(profile, "two_segment", rows)
+    answer = sections.words(sections.two_segment_section(profile), "answer")
+    assert answer.startswith("Best RF variant minus best baseline seen at the tip alone: -1.00 mm [")
+    assert "(RF lower) on the shapes, -0.33 mm [" in answer and "(no ranking) on the random references." in answer
+    assert "middle disk" not in answer  # no RF variant there yet
+    write_sweep(profile, "two_segment", rows.iloc[:0])
+    nothing = sections.words(sections.two_segment_section(profile), "answer")
+    assert nothing == "No observation has rows of both sides yet (0 cells have rows)."
 
 
 def test_best_against_best_keeps_its_families_and_leaves_out_one_without_both_groups(rows):

@@ -1,52 +1,38 @@
-"""docs/results.md (``results_page``): every table, the claims checked, and the studies'
-verdicts in words.
-
-The verdicts are computed here from the studies' rows (figures/sweeps/, intervals only, no
-model runs), so every one follows the current rule: words only where both the bootstrap and
-the paired t-interval exclude zero."""
+"""docs/results.md (``results_page``): Tables I-IV, when a ranking is stated, each study's
+section (``sections``: question, rule, answer, one table, one figure), where the rows were
+computed, the claims checked, the design choices and the other key figures."""
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import pandas as pd
 
 from softflow.machine import description
-from softflow.models.registry import label
 from softflow.profiles import Profile
 from softflow.report.provenance import commit, recorded_wall_times
+from softflow.report.sections import filled, regime_map_rows, rendered, sections, span
 from softflow.report.study_tables import (
     best_against_best,
     floor_progress,
-    interval_text,
     lambda_decision,
-    recorded_model_rule,
-    recording_rule,
     regime_map,
-    regime_rows,
     size_effects,
-    table_order,
-    two_segment_differences,
     verdict_counts,
 )
 from softflow.report.tables import (
     BASELINES,
-    LABELS,
     RF_FAMILY,
-    computed_rows,
     machine_counts,
     markdown,
     our_table,
     read_result,
     read_sweep,
 )
-from softflow.studies import one_step, stats, trunk, trunk_v2
-from softflow.studies.recorded import RECORDED
-from softflow.studies.recorded import cells as recorded_cells
+from softflow.studies import stats
 from softflow.studies.study import FLOOR
 from softflow.studies.table1 import TABLE1
-from softflow.studies.two_segment import TWO_SEGMENT
-from softflow.studies.two_segment import cells as two_segment_cells
 
 WALL_TIMES = "reproduce.csv"  # per notebook, under the profile's bench folder
 FIGURES = [
@@ -175,14 +161,17 @@ def claims(profile: Profile) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=["claim", "paper", "ours", "what the measurements say"]).set_index("claim")
 
 
-def floor_note(rows: pd.DataFrame, iterations: int) -> str:
-    """What the ILC floor is, and on how many references it was still improving when it stopped."""
-    improving, references = floor_progress(rows, iterations)
-    return (
-        "The floor is iterative learning control on the true simulator: what an open-loop plan reaches with an "
-        f"exact model and many trials. Its best trial was its last (trial {iterations}; trial 0 is the quasi-static "
-        f"plan) on {improving} of {references} references, so it was still improving there when it stopped: an "
-        "upper bound on the true floor."
+def claims_list(table: pd.DataFrame, width: int = 110) -> str:
+    """The claims as a list, one item each (the paper's number, ours, what the measurements say),
+    filled to ``width`` columns."""
+    return "\n".join(
+        textwrap.fill(
+            f"- **{claim}**: the paper {row.paper}, ours {row.ours}; {row['what the measurements say']}.",
+            width,
+            subsequent_indent="  ",
+            break_on_hyphens=False,
+        )
+        for claim, row in table.iterrows()
     )
 
 
@@ -196,6 +185,8 @@ def ranking_rule_section(profile: Profile) -> list[str]:
         "fwd_lambda": lambda_decision(read_sweep(profile, "fwd_lambda"))[0],
     }
     return [
+        '<a id="ranking"></a>',
+        "",
         "## When a ranking is stated",
         "",
         "A difference between two models gets two 95 % intervals: the two-way bootstrap over training seeds and "
@@ -205,245 +196,6 @@ def ranking_rule_section(profile: Profile) -> list[str]:
         "trained model: no references to pair over, so no t-interval and no ranking in words):",
         "",
         markdown(verdict_counts(tables)),
-        "",
-    ]
-
-
-def trust_section(profile: Profile) -> list[str]:
-    """Table I with intervals and the floor, the paired difference and the protocol table (notebook 08)."""
-    summary = read_result(profile, "08_table1_ci.csv")
-    summary["cell"] = interval_text(summary)
-    table = summary.pivot(index="model", columns="family", values="cell")[["shape", "random"]]
-    table = table.reindex(table_order(table.index))
-    counts = summary.groupby("family").agg(seeds=("seeds", "max"), references=("references", "max"))
-    seeds = read_sweep(profile, "table1")
-    differences = best_against_best(seeds)
-    protocol = read_result(profile, "08_protocol.csv").set_index("condition")
-    return [
-        "## Table I with 95 % intervals and the floor (notebook 08)",
-        "",
-        f"Mean RMSE (mm) [95 % two-way bootstrap interval over {counts.seeds.max()} training seeds and "
-        f"{counts.loc['shape', 'references']} shapes / {counts.loc['random', 'references']} random references; "
-        f"seed 0 is the shipped model]. {floor_note(seeds, TABLE1[profile.name].ilc_iterations)}",
-        "",
-        markdown(table),
-        "",
-        "Best RF variant - best baseline, paired over references (bootstrap low, high; paired t-interval t_low, "
-        "t_high):",
-        "",
-        markdown(
-            differences[["best_rf", "best_baseline", "difference_mm", "low", "high", "t_low", "t_high", "verdict"]], 3
-        ),
-        "",
-        "## The evaluation protocol's effect (notebook 08)",
-        "",
-        "Mean RMSE (mm) on the shapes with the shipped models under each choice the paper leaves open; coverage: "
-        "the share of reference states as close to the training states as held-out validation states are.",
-        "",
-        markdown(protocol.rename(columns=LABELS)),
-        "",
-    ]
-
-
-def closed_loop_section(profile: Profile) -> list[str]:
-    """Table III extended, latency, lost frames, each gap term doubled, the burst's break and the
-    identified parameters (notebook 10)."""
-    table = read_result(profile, "10_table3_extended.csv").set_index(["gravity", "reference"])
-    each = table.drop(index="mean", level="reference")
-    worse = pd.DataFrame(
-        {
-            mode: (each[mode] > each["open"]).groupby(level="gravity", sort=False).sum()
-            for mode in each.columns.drop("open")
-        }
-    ).astype(int)
-    latency = read_result(profile, "10_latency.csv").set_index(["latency", "dropped"])
-    gaps = read_result(profile, "10_gap_sensitivity.csv", header=[0, 1], index_col=0)
-    gaps.columns = [f"{mode}, {gravity}" for gravity, mode in gaps.columns]
-    breaks = read_result(profile, "10_burst_breaks.csv").set_index("model")
-    identified = read_result(profile, "10_identified.csv", index_col=0)
-    return [
-        "## Closing the loop on the twin (notebook 10)",
-        "",
-        "Table III extended: RMSE through the camera (mm) under `TYPICAL_GAP` with 33 ms camera latency, RF-FWD "
-        "twin models, per loop mode (notebook 10 says what each is); `mean` is over the four shapes.",
-        "",
-        markdown(table),
-        "",
-        "References (of the four shapes and the burst) on which a mode is worse than the open loop:",
-        "",
-        markdown(worse),
-        "",
-        "Closed loop (`closed`) against camera latency (s) and lost frames, mean over the shapes (mm):",
-        "",
-        markdown(latency),
-        "",
-        "Each term of the reality gap doubled, mean over the shapes (mm):",
-        "",
-        markdown(gaps),
-        "",
-        "Where the loops break on the burst circle sped up to a 0.2 s period (the first "
-        "revolution above 10 % of L; empty: never):",
-        "",
-        markdown(breaks),
-        "",
-        "System identification through the camera (relative errors of E, eta, rho; motor lag in s):",
-        "",
-        markdown(identified, 3),
-        "",
-    ]
-
-
-def regime_summary(regimes: pd.DataFrame) -> str:
-    """The regime map in words, generated: how many flow-vs-MLP tracking comparisons each side
-    wins (both 95 % intervals, bootstrap and paired t, exclude zero), then per variant how many
-    and by how much (the ranges of the differences); the table beside it has the bootstrap
-    intervals."""
-    clauses, totals = [], {"flow": 0, "MLP": 0, "none": 0}
-    for variant, rows in regimes.groupby(level="variant", sort=False):
-        differences = {"flow": [], "MLP": [], "none": []}
-        for _, row in rows.iterrows():
-            for family in ("shape", "random"):
-                side = {0: "none", -1: "flow", 1: "MLP"}[stats.ranking(*stats.row_intervals(row, f"{family}_"))]
-                differences[side].append((family, abs(row[f"{family}_mm"])))
-        parts = [
-            f"the {side} lower in {len(d)} ({_families_text(d)}, by {_range_text([v for _, v in d])} mm)"
-            for side, d in differences.items()
-            if side != "none" and d
-        ]
-        if differences["none"]:
-            parts.append(f"{len(differences['none'])} without ranking")
-        clauses.append(f"{variant}: " + ", ".join(parts))
-        for side, d in differences.items():
-            totals[side] += len(d)
-    comparisons = sum(totals.values())
-    return (
-        f"Of {comparisons} comparisons of a flow with the MLP (tracking RMSE, z = 0 plans; variant x flow x "
-        f"reference family), the flow is lower in {totals['flow']}, the MLP in {totals['MLP']}, and "
-        f"{totals['none']} {'has' if totals['none'] == 1 else 'have'} no ranking (the bootstrap or the paired "
-        "t-interval contains 0). "
-        "By variant: " + "; ".join(clauses) + "."
-    )
-
-
-def _families_text(differences) -> str:
-    """Which reference families some (family, difference) pairs cover, as words."""
-    families = {family for family, _ in differences}
-    return (
-        "on both families"
-        if len(families) == 2
-        else {"shape": "on the shapes", "random": "on the random references"}[families.pop()]
-    )
-
-
-def _range_text(values, digits: int = 2) -> str:
-    """ "a" or "a-b": the span of some positive numbers, as the words of a summary give it."""
-    low, high = min(values), max(values)
-    return f"{low:.{digits}f}" if round(low, digits) == round(high, digits) else f"{low:.{digits}f}-{high:.{digits}f}"
-
-
-def _difference_text(estimate, low, high, digits: int = 2) -> pd.Series:
-    """ "+d [low, high]" per row, from three aligned Series."""
-    return pd.Series(
-        [f"{d:+.{digits}f} [{lo:+.{digits}f}, {hi:+.{digits}f}]" for d, lo, hi in zip(estimate, low, high)],
-        index=estimate.index,
-    )
-
-
-def _family_differences(frame: pd.DataFrame) -> dict:
-    """ "<family> (mm)" -> "+d [low, high]" per row, from the columns <family>_mm, _low, _high."""
-    return {
-        f"{family} (mm)": _difference_text(*(frame[f"{family}_{k}"] for k in ("mm", "low", "high")))
-        for family in ("shape", "random")
-    }
-
-
-def regime_map_rows(profile: Profile) -> pd.DataFrame:
-    """The ambiguity study's rows and, as far as they are computed, the two_segment study's as two
-    more variants of the regime map (``two_segment_variants``)."""
-    return regime_rows(read_sweep(profile, "ambiguity"), computed_rows(profile, "two_segment"))
-
-
-def where_flows_win_section(profile: Profile) -> list[str]:
-    """The regime map with its paragraph, and what the prior and being generative each change
-    with data size (notebook 09)."""
-    regimes = regime_map(regime_map_rows(profile))
-    table = pd.DataFrame(
-        {
-            "spread / floor (N)": [
-                f"{a:.3f} / {b:.3f}" for a, b in zip(regimes["conditional_spread"], regimes["spread_floor"])
-            ],
-            **_family_differences(regimes),
-            "per step (N)": _difference_text(regimes.step_N, regimes.step_low, regimes.step_high, 4),
-        },
-        index=regimes.index,
-    )
-    table = table.reset_index("flow").assign(flow=lambda t: t["flow"].map(LABELS))
-    effects = size_effects(read_sweep(profile, "data_size"))
-    by_size = _difference_text(effects.difference_mm, effects.low, effects.high).unstack("family")
-    by_size = by_size[["shape", "random"]].reset_index("effect")
-    return [
-        "## Where a flow beats regression (notebook 09)",
-        "",
-        regime_summary(regimes),
-        "",
-        "Each flow minus the MLP per dataset variant, with the variant's conditional spread of u and its estimator "
-        "floor: tracking RMSE paired over Table I's references (mean [95 % bootstrap interval] over seeds and "
-        "references; the words above also need the paired t-interval) and the per-step u error on held-out "
-        "transitions (interval over seeds). Below zero the flow's error is the smaller.",
-        "",
-        markdown(table),
-        "",
-        "What the physics prior and being generative each change, per training-set size (the model with minus "
-        "the model without, mm):",
-        "",
-        markdown(by_size),
-        "",
-    ]
-
-
-def consistency_weight_section(profile: Profile, taus=(0.05, 0.5)) -> list[str]:
-    """RF-FWD's consistency weight against the shipped lambda = 1, the rule's choice, and what
-    the term sees per weight at a small and a middle tau (notebook 11)."""
-    diagnostics = read_result(profile, "11_fwd_lambda_diagnostics.csv", index_col=0)
-    seen = pd.DataFrame(
-        {
-            "inverse u error (N)": diagnostics.u_rmse_test,
-            "surrogate one-step tip error (mm)": diagnostics.forward_step_mm,
-            **{
-                f"u error at tau = {tau:g}, one step / Euler (N)": [
-                    f"{a:.3f} / {b:.3f}"
-                    for a, b in zip(
-                        diagnostics[f"one_step_u_error_tau{tau:g}"], diagnostics[f"euler_u_error_tau{tau:g}"]
-                    )
-                ]
-                for tau in taus
-            },
-        },
-        index=diagnostics.index,
-    )
-    decision = lambda_decision(read_sweep(profile, "fwd_lambda"))[0]
-    chosen = decision.index[decision["chosen"].astype(bool)]
-    table = pd.DataFrame(_family_differences(decision))
-    verdict = (
-        f"lambda = {chosen[0]:g} is better on both families, so the default changes to it"
-        if len(chosen)
-        else "no weight is better than lambda = 1 on both families, so the default stays"
-    )
-    return [
-        "## RF-FWD's consistency weight (notebook 11)",
-        "",
-        "Each lambda minus the shipped lambda = 1 (mm, paired over Table I's references); by the rule fixed before "
-        f"the study ran (with both intervals, as every verdict here), {verdict}:",
-        "",
-        markdown(table),
-        "",
-        consistency_term_summary(diagnostics),
-        "",
-        "What the term sees on held-out transitions, per lambda (mean over seeds): the inverse's per-step u error, "
-        "the frozen forward surrogate's one-step error, and the u error of the loss's one-step endpoint estimate "
-        "xi_tau + (1 - tau) v beside a short Euler rollout from the same tau:",
-        "",
-        markdown(seen, 4),
         "",
     ]
 
@@ -466,11 +218,11 @@ def consistency_term_summary(diagnostics: pd.DataFrame, small: float = 0.05, mid
         f"without the term (RF) and {' / '.join(f'{e:.4f}' for e in weighted.u_rmse_test)} N at lambda = "
         f"{' / '.join(f'{w:g}' for w in weighted.index)}. The term penalises the frozen surrogate's miss for the "
         f"one-step estimate of u; at the true u the surrogate already misses by a residual of {floor:.4f} "
-        f"(normalised increment, RMS; its one-step tip error is {_range_text(diagnostics.forward_step_mm, 3)} mm). "
+        f"(normalised increment, RMS; its one-step tip error is {span(diagnostics.forward_step_mm, '{:.3f}')} mm). "
         f"The estimate's residual at tau = {middle:g} is {ratio.loc[0.0]:.2f} times that without the term and "
         f"{ratio.loc[strongest]:.2f} times at lambda = {strongest:g}{below}. At tau = {small:g} the one-step "
-        f"estimate misses u by {_range_text(one_step, 4)} N, {_range_text(one_step / euler, 1)} times a short Euler "
-        f"rollout from the same tau ({_range_text(euler, 4)} N): early on the path the term judges a cruder u than "
+        f"estimate misses u by {span(one_step, '{:.4f}')} N, {span(one_step / euler, '{:.1f}')} times a short Euler "
+        f"rollout from the same tau ({span(euler, '{:.4f}')} N): early on the path the term judges a cruder u than "
         f"the flow's own sampler gives."
     )
 
@@ -506,223 +258,6 @@ def _change_text(change_pct: float, side: int) -> str:
     """A change in percent: in words where a ranking is stated (``side`` from stats.ranking),
     else signed, with 'no ranking'."""
     return relative(-change_pct) if side else f"{change_pct:+.0f} %, no ranking"
-
-
-OBSERVED = {"tip": "the tip only", "tip+disk": "the tip and the middle disk"}
-
-
-def two_segment_summary(differences: pd.DataFrame, computed: int, cells: int | None) -> str:
-    """One paragraph: per observation and family, best RF variant minus best baseline with its
-    interval and the rule's verdict, whichever way it comes out, and how many cells it rests on
-    (of ``cells``, the grid's, where the profile has one)."""
-    done = f"{computed} of the study's {cells} cells have rows" if cells else f"{computed} cells have rows"
-    if differences.empty:
-        return (
-            f"On the two-segment rod no observation has rows of both an RF variant and a baseline yet ({done}; "
-            "`softflow sweep two_segment --profile paper` computes the rest)."
-        )
-    parts = []
-    for observation, table in differences.groupby(level="observation", sort=False):
-        families = [
-            f"{family} {row.difference_mm:+.2f} mm [{row.low:+.2f}, {row.high:+.2f}] "
-            f"({LABELS.get(row.best_rf, row.best_rf)} against {LABELS.get(row.best_baseline, row.best_baseline)}: "
-            f"{row.verdict})"
-            for (_, family), row in table.iterrows()
-        ]
-        parts.append(f"observing {OBSERVED.get(observation, observation)}, " + "; ".join(families))
-    return (
-        "On the two-segment rod, the best RF variant minus the best baseline in tracking RMSE "
-        f"(mean [95 % bootstrap interval]), {' and, '.join(parts)} ({done})."
-    )
-
-
-def two_segment_section(profile: Profile) -> list[str]:
-    """The redundant rod (notebook 12): whether the RF family beats the best regression when four
-    inputs reach one tip, from the study's rows as far as they are computed."""
-    rows = computed_rows(profile, "two_segment")
-    differences = two_segment_differences(rows)
-    return [
-        "## A two-segment rod: four inputs, one tip (notebook 12)",
-        "",
-        two_segment_summary(
-            differences,
-            rows["key"].nunique(),
-            len(two_segment_cells(profile.name)) if profile.name in TWO_SEGMENT else None,
-        ),
-        "",
-        *([markdown(differences), ""] if len(differences) else []),
-    ]
-
-
-def recorded_summary(needed: pd.DataFrame, best: pd.DataFrame, computed: int, cells: int | None) -> str:
-    """One paragraph on the recorded study: per configuration and recording size, the better model
-    of recordings minus the better open-loop simulator-trained RF-FWD with its interval and verdict
-    (``recording_rule``), then per gap the best RF variant minus the best baseline
-    (``recorded_model_rule``) and whether friction changes the winner; whichever way they come
-    out, and how many cells they rest on."""
-    done = f"{computed} of the study's {cells} cells have rows" if cells else f"{computed} cells have rows"
-    if needed.empty and best.empty:
-        return (
-            f"On the twin's recordings no comparison has rows of both its sides yet ({done}; "
-            "`softflow sweep recorded --profile paper` computes the rest)."
-        )
-    sentences = []
-    if len(needed):
-        sizes = [
-            f"{gravity}, {runs} runs: {row.difference_mm:+.2f} mm [{row.low:+.2f}, {row.high:+.2f}] ({row.verdict})"
-            for (gravity, runs), row in needed.iterrows()
-        ]
-        sentences.append(
-            "Trained on the twin's recordings alone (motor commands in, the camera's tip out), the better of MLP "
-            "and RF minus the better of the simulator-trained RF-FWD open and open-calibrated, in shape RMSE through "
-            f"the camera under cable friction (mean [95 % bootstrap interval]): {'; '.join(sizes)}."
-        )
-    if len(best):
-        gaps = [
-            f"{gravity} under the {gap} gap {row.difference_mm:+.2f} mm [{row.low:+.2f}, {row.high:+.2f}] "
-            f"({LABELS.get(row.best_rf, row.best_rf)} against {LABELS.get(row.best_baseline, row.best_baseline)}: "
-            f"{row.verdict})"
-            for (gravity, gap), row in best.iterrows()
-        ]
-        answers = {
-            answer: sorted({gravity for (gravity, _), row in best.iterrows() if row.friction_changes == answer})
-            for answer in ("yes", "no", "unanswered")
-        }
-        words = {
-            "yes": "friction changes which model is best",
-            "no": "friction leaves the same model best",
-            "unanswered": "whether friction changes the best model is unanswered (a gap without a ranking)",
-        }
-        said = [f"{words[answer]} ({', '.join(where)})" for answer, where in answers.items() if where]
-        sentences.append(
-            f"Best RF variant minus best baseline on the most recording: {'; '.join(gaps)}; {'; '.join(said)}."
-        )
-    return " ".join(sentences) + f" ({done}.)"
-
-
-def recorded_section(profile: Profile) -> list[str]:
-    """Learning from recorded runs (notebook 13): how much recording a model needs to match the
-    simulator-trained RF-FWD on the twin, and whether friction changes the best model."""
-    rows = computed_rows(profile, "recorded")
-    needed, best = recording_rule(rows), recorded_model_rule(rows)
-    cells = len(recorded_cells(profile.name)) if profile.name in RECORDED else None
-    return [
-        "## Learning from recorded runs (notebook 13)",
-        "",
-        recorded_summary(needed, best, rows["key"].nunique(), cells),
-        "",
-        *([markdown(needed), ""] if len(needed) else []),
-        *([markdown(best), ""] if len(best) else []),
-    ]
-
-
-def trunk_summary(tables: dict, computed: int, cells: int | None) -> str:
-    """One paragraph on the real robot (notebook 14) from ``trunk.summarise``'s tables: how many
-    cells have rows, whether the judge tells the training mean from the recorded inputs per family
-    (the gate), each observation's best flow against its best baseline with the verdict, and the
-    conditional spread over its floor, tip alone against every disk; whichever way they come out."""
-    done = f"{computed} of the study's {cells} cells have rows" if cells else f"{computed} cells have rows"
-    if not computed:
-        return f"On the ASL trunk no cell has rows yet ({done}; `softflow sweep trunk --profile paper`)."
-    check, rule, spread = tables["judge_check"], tables["flow_rule"], tables["spread"]
-    gate = check[check.planner == trunk.GATE]
-    told = [f"{row.family} {row.difference_mm:+.2f} mm [{row.low:+.2f}, {row.high:+.2f}]" for row in gate.itertuples()]
-    passed = int(gate.tells_apart.sum())
-    sentences = [
-        f"On the ASL trunk's held-out runs ({done}), the forward judge puts the training-mean input above the recorded "
-        f"inputs by {'; '.join(told)} (judged tip error, mm), telling them apart on {passed} of {len(gate)} families."
-    ]
-    for observation, part in rule.groupby("observation", sort=False) if len(rule) else ():
-        said = [
-            f"{row.family} {row.difference_mm:+.2f} mm [{row.low:+.2f}, {row.high:+.2f}] "
-            f"({LABELS[row.best_flow]} against {LABELS[row.best_baseline]}: {row.verdict})"
-            for row in part.itertuples()
-        ]
-        sentences.append(f"Best flow minus best baseline observing {observation}: {'; '.join(said)}.")
-    if len(spread):
-        ratios = [f"{observation} {row['spread / floor']:.1f}x" for observation, row in spread.iterrows()]
-        sentences.append(f"The conditional spread of u over its estimator floor: {', '.join(ratios)}.")
-    if cells and computed == cells and len(rule):
-        sentences.append(trunk.answer_sentence(rule))
-    return " ".join(sentences)
-
-
-def trunk_section(profile: Profile) -> list[str]:
-    """A real robot (notebook 14): the trunk study's verdicts from its rows as far as computed."""
-    rows = computed_rows(profile, "trunk")
-    tables = trunk.summarise(rows) if len(rows) else {}
-    rule = tables.get("flow_rule", pd.DataFrame())
-    cells = len(trunk.cells(profile.name)) if profile.name in trunk.TRUNK_GRID else None
-    return [
-        "## A real robot: the ASL trunk (notebook 14)",
-        "",
-        trunk_summary(tables, rows["key"].nunique(), cells),
-        "",
-        *([markdown(rule.set_index(["observation", "family"])), ""] if len(rule) else []),
-        *(
-            [
-                "Asked again with two judges that never saw the run they score, validated before any planner row "
-                f"(`trunk_v2`, notebook 14): {trunk_v2.answer(computed_rows(profile, 'trunk_v2'), profile.name)}",
-                "",
-            ]
-            if profile.name in trunk_v2.GRID
-            else []
-        ),
-    ]
-
-
-def one_step_summary(tables: dict, computed: int, cells: int | None) -> str:
-    """One paragraph on the one-step study (notebook 15) from ``one_step.summarise``'s tables:
-    each rule's comparisons with their intervals and words, whichever way they come out, and
-    what waits for cells without rows."""
-    done = f"{computed} of the study's {cells} cells have rows" if cells else f"{computed} cells have rows"
-    if not computed:
-        return f"No cell of the one-step study has rows yet ({done}; `softflow sweep one_step --profile paper`)."
-
-    def ratios(table: pd.DataFrame) -> str:
-        return "; ".join(
-            f"{label(row.model)} over {label(row.other)} on the {row.rod} rod's {row.family} references "
-            f"{row.ratio:.2f}x [{row.low:.2f}, {row.high:.2f}] ({row.within_10_percent})"
-            for row in table.itertuples()
-        )
-
-    sentences = [
-        f"The one-step study ({done}; a plan is model@steps, the ratio's interval the two-way bootstrap paired over "
-        f"references; within 10 % means the interval inside [{one_step.BAND[0]}, {one_step.BAND[1]}])."
-    ]
-    if len(tables["parity"]):
-        sentences.append(f"Parity, a one-step flow at 1 step over its parent at 4: {ratios(tables['parity'])}.")
-    if len(tables["collapse"]):
-        sentences.append(f"The collapse, a flow in 1 Euler step over the MLP: {ratios(tables['collapse'])}.")
-    win = tables["tip_win"]
-    if len(win):
-        said = [
-            f"{label(row.model)} minus {label(row.other)} on the {row.family} references {row.difference_mm:+.2f} mm "
-            f"[{row.low:+.2f}, {row.high:+.2f}] ({row.verdict})"
-            for row in win.itertuples()
-        ]
-        sentences.append(f"The tip-alone win on the two-segment rod: {'; '.join(said)}.")
-    else:
-        sentences.append("The tip-alone win on the two-segment rod waits for that rod's cells.")
-    return " ".join(sentences)
-
-
-def one_step_section(profile: Profile) -> list[str]:
-    """A flow in one step (notebook 15): the one-step study's rules from its rows as far as computed."""
-    rows = computed_rows(profile, "one_step")
-    tables = one_step.summarise(rows) if len(rows) else {}
-    cells = len(one_step.cells(profile.name)) if profile.name in one_step.ONE_STEP else None
-    rmse = pd.DataFrame()
-    if tables:
-        counts = {column: tables["rmse"][column].astype(int).astype(str) for column in ("seeds", "references")}
-        rmse = tables["rmse"].assign(**counts).set_index(["rod", "family", "model"])  # counts without ".00"
-    return [
-        "## A flow in one step (notebook 15)",
-        "",
-        one_step_summary(tables, rows["key"].nunique(), cells),
-        "",
-        *([markdown(rmse), ""] if len(rmse) else []),
-    ]
 
 
 def portability_section(profile: Profile) -> list[str]:
@@ -826,22 +361,18 @@ def results_page(profile: Profile, tables: dict, run_dir: Path) -> str:
     for name, title in titles.items():
         lines += [f"## {title}", "", tables[name], ""]
     lines += ranking_rule_section(profile)
-    lines += trust_section(profile)
-    lines += closed_loop_section(profile)
-    lines += where_flows_win_section(profile)
-    lines += consistency_weight_section(profile)
-    lines += two_segment_section(profile)
-    lines += recorded_section(profile)
-    lines += trunk_section(profile)
-    lines += one_step_section(profile)
+    shown = []
+    for section in sections(profile):
+        lines += [rendered(section, profile.output_dir), ""]
+        shown.append(section.figure)
     lines += machines_section(profile)
     lines += portability_section(profile)
-    lines += ["## The paper's claims, reproduced or not", "", markdown(claims(profile)), ""]
+    lines += ["## The paper's claims, reproduced or not", "", claims_list(claims(profile)), ""]
     lines += design_choices(profile)
     lines += ["## Key figures", ""]
     lines += [
         f"### {caption}\n\n![{caption}](../figures/{name})\n"
         for caption, name in FIGURES
-        if (profile.output_dir / name).exists()
+        if name not in shown and (profile.output_dir / name).exists()
     ]
-    return "\n".join(lines).rstrip() + "\n"
+    return "\n".join(filled(line) for line in lines).rstrip() + "\n"

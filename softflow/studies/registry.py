@@ -80,20 +80,39 @@ from softflow.studies.study import Study
 
 STUDIES = {
     "smoke": Study(smoke.cells, smoke.run, smoke.models),
-    "table1": Study(table1.cells, table1.run, table1.models, notebook="08_honest_table1.ipynb"),
-    "protocol": Study(protocol.cells, protocol.run, protocol.models, notebook="08_honest_table1.ipynb"),
-    "data_size": Study(data_size.cells, data_size.run, data_size.models, notebook="09_where_flows_win.ipynb"),
+    "table1": Study(table1.cells, table1.run, table1.models, notebook="08_honest_table1.ipynb", fixed_in="98b61d3"),
+    "protocol": Study(
+        protocol.cells, protocol.run, protocol.models, notebook="08_honest_table1.ipynb", fixed_in="17cdbab"
+    ),
+    "data_size": Study(
+        data_size.cells, data_size.run, data_size.models, notebook="09_where_flows_win.ipynb", fixed_in="09616ef"
+    ),
     "closed_loop": Study(
-        closed_loop.cells, closed_loop.run, closed_loop.models, version=2, notebook="10_closed_loop.ipynb"
+        closed_loop.cells,
+        closed_loop.run,
+        closed_loop.models,
+        version=2,
+        notebook="10_closed_loop.ipynb",
+        fixed_in="b784d05",
     ),
     "twin_burst": Study(twin_burst.cells, twin_burst.run, twin_burst.models, notebook="10_closed_loop.ipynb"),
-    "ambiguity": Study(ambiguity.cells, ambiguity.run, ambiguity.models, notebook="09_where_flows_win.ipynb"),
-    "fwd_lambda": Study(fwd_lambda.cells, fwd_lambda.run, fwd_lambda.models, notebook="11_consistency_weight.ipynb"),
+    "ambiguity": Study(
+        ambiguity.cells, ambiguity.run, ambiguity.models, notebook="09_where_flows_win.ipynb", fixed_in="290bd2c"
+    ),
+    "fwd_lambda": Study(
+        fwd_lambda.cells, fwd_lambda.run, fwd_lambda.models, notebook="11_consistency_weight.ipynb", fixed_in="c6b2511"
+    ),
     "design": Study(design.cells, design.run, design.models, notebook="04_rf_variants.ipynb"),
-    "two_segment": Study(two_segment.cells, two_segment.run, two_segment.models, notebook="12_two_segment.ipynb"),
-    "recorded": Study(recorded.cells, recorded.run, recorded.models, notebook="13_recorded_runs.ipynb"),
-    "trunk": Study(trunk.cells, trunk.run, trunk.models, notebook="14_real_robot.ipynb"),
-    "trunk_v2": Study(trunk_v2.cells, trunk_v2.run, trunk_v2.models, notebook="14_real_robot.ipynb"),
-    "loop": Study(loop.cells, loop.run, loop.models, notebook="16_closed_loop_recorded.ipynb"),
-    "one_step": Study(one_step.cells, one_step.run, one_step.models, notebook="15_one_step.ipynb"),
+    "two_segment": Study(
+        two_segment.cells, two_segment.run, two_segment.models, notebook="12_two_segment.ipynb", fixed_in="07f9848"
+    ),
+    "recorded": Study(
+        recorded.cells, recorded.run, recorded.models, notebook="13_recorded_runs.ipynb", fixed_in="6b4864d"
+    ),
+    "trunk": Study(trunk.cells, trunk.run, trunk.models, notebook="14_real_robot.ipynb", fixed_in="cb9151a"),
+    "trunk_v2": Study(
+        trunk_v2.cells, trunk_v2.run, trunk_v2.models, notebook="14_real_robot.ipynb", fixed_in="7f7d88d"
+    ),
+    "loop": Study(loop.cells, loop.run, loop.models, notebook="16_closed_loop_recorded.ipynb", fixed_in="ff6c57c"),
+    "one_step": Study(one_step.cells, one_step.run, one_step.models, notebook="15_one_step.ipynb", fixed_in="16c098b"),
 }

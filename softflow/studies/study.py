@@ -37,6 +37,8 @@ class Study:
     ``version``: bump it when a change alters the numbers run_cell returns; every cached row
     of the study is then recomputed.
     ``notebook``: the notebook that runs the study and shows its rows ("" for none).
+    ``fixed_in``: the commit that fixed its conditions (and its rule, where it has one) before
+    its first row ("" for none).
     """
 
     cells: Callable[[str], list[dict]]
@@ -44,6 +46,7 @@ class Study:
     models: Callable[[dict, str], dict] = lambda cell, profile_name: {}
     version: int = 1
     notebook: str = ""
+    fixed_in: str = ""
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -412,7 +412,7 @@ def flow_rule(rows: pd.DataFrame) -> pd.DataFrame:
     return pd.concat([ranked, untrusted]).sort_index()
 
 
-ANSWERS = {  # notebook_12_answer in words, for the README and the results page
+ANSWERS = {  # notebook_12_answer in words, for the README and the results page (its answer is withdrawn)
     "confirms": "the real robot confirms notebook 12: a flow is lower from the tip alone, and on no family once "
     "every disk is seen",
     "reverses": "the real robot does not confirm notebook 12: no flow is lower from the tip alone, while one is "
@@ -421,12 +421,6 @@ ANSWERS = {  # notebook_12_answer in words, for the README and the results page
     "every disk is seen",
     "neither": "the real robot neither confirms nor contradicts notebook 12: no flow is lower from either observation",
 }
-# Said beside the answer wherever it is stated: why it cannot be trusted (docs/assumptions.md, "The trunk study").
-WITHDRAWN = (
-    "This answer is withdrawn: the judge was trained on the held-out runs it scores (most of their windows) and is "
-    "the forward surrogate of RF-FWD's consistency term; the question is to be asked again of judges that never saw "
-    "what they score, validated before any row"
-)
 
 
 def notebook_12_answer(rule: pd.DataFrame) -> str:
@@ -441,15 +435,6 @@ def notebook_12_answer(rule: pd.DataFrame) -> str:
     flows_lower = flow_lower.groupby(rule.observation).any()
     tip, disks = flows_lower.get("tip", False), flows_lower.get("disks", False)
     return {(True, False): "confirms", (False, True): "reverses", (True, True): "both"}.get((tip, disks), "neither")
-
-
-def answer_sentence(rule: pd.DataFrame) -> str:
-    """The answer in words with its rule and, beside it, why it is withdrawn: the one sentence the
-    README and the results page state once every cell has rows."""
-    return (
-        "Under the rule registered before any row (both intervals below zero, on families the judge passes; no Holm "
-        f"family was registered), {ANSWERS[notebook_12_answer(rule)]}. {WITHDRAWN}."
-    )
 
 
 def per_step(rows: pd.DataFrame) -> pd.DataFrame:
