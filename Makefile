@@ -13,7 +13,7 @@ PROFILE ?= paper
 BENCH_PROFILE ?= ci
 NOTEBOOKS := $(sort $(wildcard notebooks/[0-9]*.ipynb))
 
-.PHONY: venv test lint reproduce readme loop-parts study bench bench-setup bench-reproduce portability lab clean lock strip
+.PHONY: venv test lint reproduce readme site loop-parts study bench bench-setup bench-reproduce portability lab clean lock strip
 
 venv: $(STAMP)
 
@@ -86,10 +86,16 @@ reproduce: $(STAMP)
 		$(VENV)/bin/papermill --cwd notebooks -p profile $(PROFILE) "$$nb" "build/notebooks/$(PROFILE)/$$(basename $$nb)" || exit 1; \
 	done
 	$(if $(filter paper,$(PROFILE)),$(PY) -m softflow.report.readme)
+	$(PY) -m softflow.report.site --notebooks build/notebooks/$(PROFILE)
 
-# The README's result block, from the shipped study rows (softflow/report/templates/result.md.j2).
+# The README's result block, from the shipped study rows (softflow/report/templates/studies/).
 readme: $(STAMP)
 	$(PY) -m softflow.report.readme
+
+# The companion site, build/site/index.html: the results page and the notebooks make reproduce
+# executed (build/notebooks/paper/), as static HTML; nothing is run again.
+site: $(STAMP)
+	$(PY) -m softflow.report.site
 
 # The loop's filter and predictors on the ASL trunk's held-out run (about a minute)
 loop-parts: $(STAMP)
