@@ -5,7 +5,9 @@ seed, another model) and the references (another reference, another error). The 
 here resamples both, independently (two-way), so an interval covers what a rerun with new
 seeds on new references of the same families would give. Differences between two models
 are paired over references (both are scored on the same ones) and unpaired over seeds
-(seed 1 of one model has nothing to do with seed 1 of another).
+(seed 1 of one model has nothing to do with seed 1 of another). It is written here because no
+library resamples two crossed factors at once (scipy's ``bootstrap`` resamples one sample, or
+paired samples together); the t-test is scipy's, Holm's adjustment statsmodels'.
 
 The paired t-interval is a second, stricter check on a difference: it averages each model's
 seeds per reference and treats the references alone as the sample, so a difference that rests
@@ -163,13 +165,14 @@ def paired_t(
     if len(a) == 0 or set(a.index) != set(b.index):
         raise ValueError(f"{model} and {other} must score the same references; got {list(a.index)} and {list(b.index)}")
     differences = (a - b[a.index]).to_numpy()
-    estimate, n = float(differences.mean()), len(differences)
-    if n < 2:
+    estimate = float(differences.mean())
+    if len(differences) < 2:
         return Interval(estimate, np.nan, np.nan)
-    error = differences.std(ddof=1) / np.sqrt(n)
-    half = distributions.t.ppf((1 + level) / 2, n - 1) * error
-    p = 2 * distributions.t.sf(abs(estimate) / error, n - 1) if error > 0 else float(estimate == 0)
-    return Interval(estimate, float(estimate - half), float(estimate + half), float(p))
+    if not differences.std() > 0:  # every reference the same difference: no spread to test against
+        return Interval(estimate, estimate, estimate, float(estimate == 0))
+    test = distributions.ttest_1samp(differences, 0.0)
+    low, high = test.confidence_interval(level)
+    return Interval(estimate, float(low), float(high), float(test.pvalue))
 
 
 def ranking(*intervals: Interval) -> int:
@@ -185,17 +188,17 @@ def ranking(*intervals: Interval) -> int:
 
 
 def holm(p_values) -> np.ndarray:
-    """Holm's step-down adjustment of a family's p-values (same order; NaN, a comparison without a
-    t-test, stays NaN and is not counted in the family): the k-th smallest of m is multiplied by
-    m - k + 1, then made non-decreasing, and capped at 1."""
+    """Holm's step-down adjustment of a family's p-values (statsmodels' ``multipletests``), in the
+    same order; NaN, a comparison without a t-test, stays NaN and is not counted in the family."""
+    from statsmodels.stats.multitest import multipletests  # half a second to import: only verdict tables need it
+
     p = np.asarray(p_values, float)
     if p.ndim != 1 or np.any((p < 0) | (p > 1)):
         raise ValueError(f"p_values must be a 1-D array of probabilities (NaN allowed); got {p_values!r}")
-    tested = np.flatnonzero(np.isfinite(p))
-    order = tested[np.argsort(p[tested], kind="stable")]
-    scaled = p[order] * (len(order) - np.arange(len(order)))
+    tested = np.isfinite(p)
     adjusted = np.full(p.shape, np.nan)
-    adjusted[order] = np.minimum(np.maximum.accumulate(scaled), 1.0)
+    if tested.any():
+        adjusted[tested] = multipletests(p[tested], method="holm")[1]
     return adjusted
 
 
