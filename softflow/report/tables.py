@@ -176,7 +176,9 @@ def _beside(ours: pd.DataFrame, paper: pd.DataFrame) -> pd.DataFrame:
 
 
 def markdown(table: pd.DataFrame, digits: int = 2) -> str:
-    """A GitHub-flavoured Markdown table (no extra dependency)."""
+    """A GitHub-flavoured Markdown table: model names as their labels, NaN as "--", "|" escaped,
+    cells unpadded (``DataFrame.to_markdown`` needs tabulate, pads every cell to its column's
+    width and knows no labels)."""
     columns = [" ".join(map(str, c)) if isinstance(c, tuple) else str(c) for c in table.columns]
     rows = [
         [" ".join(map(str, index)) if isinstance(index, tuple) else LABELS.get(str(index), str(index))]
