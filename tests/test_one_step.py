@@ -5,7 +5,6 @@ the tip-alone win is a verdict of the two intervals and Holm."""
 import numpy as np
 import pandas as pd
 
-from softflow.report import readme
 from softflow.studies import one_step
 
 
@@ -64,13 +63,18 @@ def test_the_grid_is_the_registered_one():
     assert {(c["rod"], c["model"]) for c in one_step.cells("ci")} == {("paper", m) for m in ("mlp", "rf", "rf-1")}
 
 
-def test_the_readme_states_each_rules_words():
-    """The README's one-step sentence quotes every comparison with its own words and interval."""
+def test_the_answer_states_each_rules_words(tmp_path, monkeypatch):
+    """The one-step answer quotes every comparison with its own words and interval."""
+    from small_runs import report_profile, write_sweep
+
+    from softflow.report import sections
+
+    profile = report_profile(tmp_path, monkeypatch)
     made = rows({("mlp", 0): 1.0, ("rf", 4): 0.8, ("rf", 1): 1.0, ("rf-1", 1): 0.82, ("rf-fwd-1", 1): 1.0})
-    said = readme._one_step(
-        made.assign(key=made["model"] + made["plan_steps"].astype(str) + made["seed"].astype(str)), 30
+    write_sweep(
+        profile, "one_step", made.assign(key=made["model"] + made["plan_steps"].astype(str) + made["seed"].astype(str))
     )
-    assert (said["computed"], said["cells"]) == (15, 30)  # 5 plans x 3 seeds, as keys
-    assert said["parity"] == dict(range="1.02x", tally="within in 1 of 1", comparisons=1)
-    assert said["collapse"]["tally"] == "within in 1 of 1" and said["collapse"]["comparisons"] == 1
-    assert {d["model"]: d["verdict"] for d in said["tip_win"]} == {"RF-1@1": "RF-1@1 lower", "RF-FWD-1@1": "no ranking"}
+    said = sections.words(sections.one_step_section(profile), "answer")
+    assert said.startswith("A one-step flow at 1 step over its parent at 4 is 1.02x (within in 1 of 1)")
+    assert "a plain flow in 1 Euler step over the MLP, 1.00x (within in 1 of 1)" in said
+    assert "RF-1@1 minus the MLP " in said and "(RF-1@1 lower)" in said and "(no ranking)" in said

@@ -332,9 +332,11 @@ def one_step_section(profile: Profile) -> Section:
             return dict(range="no comparison yet", tally="none")
         return dict(range=f"{span(table.ratio, '{:.2f}')}x", tally=tally(table.within_10_percent))
 
+    win = tables.get("tip_win", pd.DataFrame())
     context = dict(
         parity=ratios(tables.get("parity", pd.DataFrame())),
         collapse=ratios(tables.get("collapse", pd.DataFrame())),
+        tip_win=[dict(model=label(row.model), family=row.family, **difference(row)) for _, row in win.iterrows()],
         **progress(profile, "one_step", rows),
     )
     table = pd.DataFrame()
