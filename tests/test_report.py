@@ -10,7 +10,7 @@ import pytest
 from small_runs import report_profile, write_sweep
 
 from softflow import report
-from softflow.report import results_page, sections
+from softflow.report import registry, results_page, sections
 from softflow.rod.robots import HW_ROBOT
 from softflow.store import REPO
 from softflow.studies.registry import STUDIES
@@ -70,17 +70,23 @@ def test_a_missing_result_names_the_notebook_that_writes_it(profile):
         report.read_sweep(profile, "table1")
 
 
-def test_every_committed_result_has_the_notebook_that_writes_it():
-    """Read from the notebooks themselves: a cell that saves a table and names the file
-    (notebook 08's "08_differences" + ".csv", notebook 07's "table1_tracking"), else the
-    notebook of the file's number (notebook 14 writes its tables by name in a loop)."""
-    assert report.writer("results_baselines.csv") == "03_baselines.ipynb"
-    assert report.writer("08_differences.csv") == "08_honest_table1.ipynb"
-    assert report.writer("table1_tracking.csv") == "07_comparison_tables.ipynb"
-    assert report.writer("14_judged_paper.csv") == "14_real_robot.ipynb"
-    assert report.writer("nobody_writes.csv") == "the notebook that writes it"
-    unwritten = [p.name for p in sorted((REPO / "figures").glob("*.csv")) if report.writer(p.name).startswith("the ")]
-    assert unwritten == []
+def test_every_committed_result_file_is_registered_and_its_notebook_writes_it():
+    """The registry names every file under figures/ and no other; each entry's notebook has a
+    cell that names it (a study table through written / written_summary, any other by its stem)."""
+    assert set(registry.RESULT_FILES) == {path.name for path in (REPO / "figures").glob("*.csv")}
+    sources = {}
+    for name, entry in registry.RESULT_FILES.items():
+        if entry.notebook not in sources:
+            cells = json.loads((REPO / "notebooks" / entry.notebook).read_text())["cells"]
+            sources[entry.notebook] = "\n".join("".join(c["source"]) for c in cells if c["cell_type"] == "code")
+        code = sources[entry.notebook]
+        study = getattr(entry, "studies", ("",))[0]
+        named = f'"{name}"' in code or f'"{name.removesuffix(".csv")}' in code
+        assert named or f'written_summary("{study}"' in code, f"{entry.notebook} does not write {name}"
+    assert registry.writer("results_baselines.csv") == "03_baselines.ipynb"
+    assert registry.writer("twin_sensitivity.csv") == "06_hardware_replay.ipynb"
+    with pytest.raises(ValueError, match="'nobody_writes.csv' is not a registered result file"):
+        registry.writer("nobody_writes.csv")
 
 
 @pytest.mark.parametrize("study", [s for s in STUDIES if STUDIES[s].notebook])

@@ -11,7 +11,6 @@ EXPORTS = {
         "BASELINES",
         "RF_FAMILY",
         "LABELS",
-        "writer",
         "PAPER_TABLE1",
         "PAPER_TABLE2",
         "PAPER_TABLE3",

@@ -1,8 +1,13 @@
-"""Which committed result files are made from the studies' shipped rows alone, and by what: each
-entry names the studies whose rows it reads and the function that turns them into the table.
-Notebooks make and write these tables only through ``written``, and a test regenerates every entry
-from `figures/sweeps/` and fails where a committed file differs, so a table cannot go stale behind
-the rows it claims to show."""
+"""Every committed result file (figures/*.csv), what makes it and which notebook writes it.
+
+A ``StudyTable`` is made from the studies' shipped rows alone: the entry names the studies whose
+rows it reads and the function that turns them into the table; notebooks make and write these only
+through ``written``, and a test regenerates every one from `figures/sweeps/` and fails where a
+committed file differs, so a table cannot go stale behind the rows it claims to show. A
+``Written`` file is one no test regenerates (rollouts of the shipped models, a simulation, a wall
+time, or a notebook's own table that nothing in the report reads): the entry names its notebook
+and what it is made from; a test checks that it is there and that its notebook writes it.
+``writer`` answers from here which notebook to run for a file."""
 
 from __future__ import annotations
 
@@ -16,6 +21,7 @@ from softflow.report import study_tables
 from softflow.report.tables import read_sweep
 from softflow.store import write_text
 from softflow.studies import loop, one_step, trunk, trunk_v2
+from softflow.studies.registry import STUDIES
 
 
 @dataclass(frozen=True)
@@ -28,6 +34,60 @@ class StudyTable:
     make: Callable[..., pd.DataFrame | dict[str, pd.DataFrame]]
     index: bool = True
     part: str | None = None
+    writer: str = ""  # the notebook that writes it, where it is not its first study's
+
+    @property
+    def notebook(self) -> str:
+        return self.writer or STUDIES[self.studies[0]].notebook
+
+
+@dataclass(frozen=True)
+class Written:
+    """A file ``notebook`` writes that no test regenerates, and what it is made from: what a test
+    cannot redo (rollouts, simulations, wall times), or a study's rows in a table of the notebook's
+    own that nothing in the report reads (moving that code into ``study_tables`` would make it a
+    ``StudyTable``)."""
+
+    notebook: str
+    made_from: str
+
+
+ROLLOUTS = "rollouts of the shipped models in the simulator"
+TIMED = "wall times measured as the notebook runs"
+WRITTEN = {
+    "results_baselines.csv": Written("03_baselines.ipynb", ROLLOUTS),
+    "training_baselines.csv": Written("03_baselines.ipynb", "the shipped checkpoints' training logs"),
+    "latency_baselines.csv": Written("03_baselines.ipynb", TIMED),
+    "baseline_sizes.csv": Written("03_baselines.ipynb", ROLLOUTS + " (checkpoints/variants)"),
+    "results_rf.csv": Written("04_rf_variants.ipynb", ROLLOUTS),
+    "training_rf.csv": Written("04_rf_variants.ipynb", "the shipped checkpoints' training logs"),
+    "euler_sweep.csv": Written("04_rf_variants.ipynb", f"{ROLLOUTS}, and {TIMED}"),
+    **{
+        f"stress_{name}.csv": Written("05_stress_tests.ipynb", ROLLOUTS)
+        for name in ("burst", "burst_revolutions", "beyond_revolutions", "break_points", "complex3d", "uncertainty")
+    },
+    "stress_plan_choice.csv": Written("05_stress_tests.ipynb", ROLLOUTS),
+    "twin_results.csv": Written("06_hardware_replay.ipynb", "the twin's camera runs of the shipped twin models"),
+    "table3_twin.csv": Written("06_hardware_replay.ipynb", "the twin's camera runs of the shipped twin models"),
+    **{
+        f"{name}.csv": Written("07_comparison_tables.ipynb", "the result files above, beside the paper's numbers")
+        for name in ("table1_tracking", "table2_inputs", "table3_hardware", "table4_literature")
+    },
+    "09_ambiguity_per_step.csv": Written("09_where_flows_win.ipynb", "the ambiguity study's rows, per step"),
+    "09_ambiguity_tracking.csv": Written("09_where_flows_win.ipynb", "the ambiguity study's rows"),
+    "09_data_size.csv": Written("09_where_flows_win.ipynb", "the data_size study's rows"),
+    "09_data_size_per_step.csv": Written("09_where_flows_win.ipynb", "the data_size study's rows, per step"),
+    "10_latency.csv": Written("10_closed_loop.ipynb", "the closed_loop study's rows"),
+    "10_gap_sensitivity.csv": Written("10_closed_loop.ipynb", "the closed_loop study's rows"),
+    "10_burst_revolutions.csv": Written("10_closed_loop.ipynb", "the twin_burst study's rows"),
+    "10_burst_breaks.csv": Written("10_closed_loop.ipynb", "the twin_burst study's rows"),
+    "10_identified.csv": Written("10_closed_loop.ipynb", "a simulated identification run through the camera"),
+    "11_fwd_lambda.csv": Written("11_consistency_weight.ipynb", "the fwd_lambda study's rows"),
+    "11_fwd_lambda_diagnostics.csv": Written("11_consistency_weight.ipynb", "the fwd_lambda rows and forward.pt"),
+    "12_checks.csv": Written("12_two_segment.ipynb", "the two-segment rod's simulated modes against closed forms"),
+    "13_hysteresis.csv": Written("13_recorded_runs.ipynb", "the twin's simulated hysteresis loops"),
+    "14_runs.csv": Written("14_real_robot.ipynb", "the ASL trunk's runs (datasets/asl_trunk/), read and smoothed"),
+}
 
 
 # study: (its summarise, the prefix of its files, the parts each is a file of, whether they hold the index)
@@ -46,6 +106,14 @@ SUMMARIES = {
 
 def _per_study_files() -> dict[str, StudyTable]:
     files = {
+        "08_table1_ci.csv": StudyTable(("table1",), study_tables.table1_summaries),
+        "08_table2_ci.csv": StudyTable(("table1",), study_tables.table2_ci),
+        "08_protocol.csv": StudyTable(("protocol",), study_tables.protocol_table),
+        "08_speed.csv": StudyTable(("protocol",), study_tables.speed_table),
+        "design_sweep.csv": StudyTable(("design",), study_tables.design_table),
+        "twin_sensitivity.csv": StudyTable(
+            ("closed_loop",), study_tables.gap_sensitivity, writer="06_hardware_replay.ipynb"
+        ),
         "08_differences.csv": StudyTable(("table1",), study_tables.best_against_best),
         "09_data_size_effects.csv": StudyTable(("data_size",), study_tables.size_effects),
         "09_regime_map.csv": StudyTable(
@@ -70,7 +138,15 @@ def _per_study_files() -> dict[str, StudyTable]:
     return files
 
 
-FILES = _per_study_files()
+FILES = _per_study_files()  # the study tables
+RESULT_FILES = {**FILES, **WRITTEN}  # every committed result file
+
+
+def writer(name: str) -> str:
+    """The notebook that writes the result file ``name``: the one to run when it is missing."""
+    if name not in RESULT_FILES:
+        raise ValueError(f"{name!r} is not a registered result file; expected one of {sorted(RESULT_FILES)}")
+    return RESULT_FILES[name].notebook
 
 
 def _entries(names) -> list[StudyTable]:

@@ -11,11 +11,13 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from softflow.control.metrics import table_rows
 from softflow.data import OBSERVATIONS
 from softflow.hardware.gap import GAP_TERMS
 from softflow.report.tables import BASELINES, LABELS, MODELS, RF_FAMILY
 from softflow.studies import stats
 from softflow.studies.closed_loop import CAMERA_LATENCY, LOOP_MODES
+from softflow.studies.design import VARIANTS as DESIGN_VARIANTS
 from softflow.studies.study import FLOOR
 from softflow.studies.two_segment import FLOOR_OBSERVATION
 
@@ -110,6 +112,39 @@ def best_against_best(rows: pd.DataFrame, value: str = "rmse_mm", families=("sha
         out.append(dict(family=family, best_rf=rf, best_baseline=baseline, **_interval_columns(interval, t)))
     table = pd.DataFrame(out, columns=BEST_AGAINST_BEST).set_index("family")
     return stats.family_verdicts(table, _best_names)
+
+
+def table1_summaries(rows: pd.DataFrame, families=("shape", "random")) -> pd.DataFrame:
+    """``with_ci`` of the tracking RMSE per family, stacked (index family, model): notebook 08's file."""
+    return pd.concat({family: with_ci(rows, "rmse_mm", family) for family in families}, names=["family"])
+
+
+# Table II's measures with intervals: (column, value, family, digits)
+TABLE2_CI = (
+    ("phase_lag_s (shape)", "phase_lag_s", "shape", 3),
+    ("input_energy (random)", "input_energy", "random", 2),
+    ("mae_u1 (random)", "mae_u1", "random", 3),
+)
+
+
+def table2_ci(rows: pd.DataFrame) -> pd.DataFrame:
+    """Table II from the table1 sweep: "mean [low, high]" per model of each of its measures."""
+    return pd.DataFrame(
+        {name: interval_text(with_ci(rows, value, family), digits) for name, value, family, digits in TABLE2_CI}
+    )
+
+
+def speed_table(rows: pd.DataFrame) -> pd.DataFrame:
+    """Mean shape RMSE per model and speed with its interval, from the protocol study's rows of
+    Table I's condition and of its speed conditions."""
+    fast = rows[((rows.condition == "table1") | rows.condition.str.startswith("speed-")) & (rows.family == "shape")]
+    return stats.summarise(fast, "rmse_mm", by=("model", "speed"))
+
+
+def design_table(rows: pd.DataFrame) -> pd.DataFrame:
+    """The design study's variants (in its order) with their mean RMSE on each family (notebook 04)."""
+    table = table_rows(rows.assign(model=rows.variant))
+    return table.loc[list(DESIGN_VARIANTS), ["rmse_shape_mm", "rmse_random_mm"]]
 
 
 def protocol_table(rows: pd.DataFrame, family: str = "shape") -> pd.DataFrame:

@@ -7,8 +7,6 @@ that writes it.
 
 from __future__ import annotations
 
-import json
-
 import numpy as np
 import pandas as pd
 
@@ -16,7 +14,7 @@ from softflow.control.metrics import table_rows
 from softflow.models.registry import MODELS as MODEL_SPECS
 from softflow.profiles import Profile
 from softflow.rod.robots import HW_ROBOT
-from softflow.store import DATA_DIR, REPO, write_text
+from softflow.store import DATA_DIR, write_text
 from softflow.studies.registry import STUDIES
 from softflow.studies.study import FLOOR
 
@@ -56,25 +54,13 @@ PAPER_TABLE4 = pd.DataFrame(
 ).set_index("method")
 
 
-def writer(name: str) -> str:
-    """The notebook that writes the result file ``name``, the one to run when it is missing: the
-    one with a cell that saves a table and names the file's stem (notebooks write
-    "08_differences" + ".csv"), else the one whose number the file's name starts with."""
-    stem = name.rsplit(".", 1)[0]
-    notebooks = sorted((REPO / "notebooks").glob("[0-9]*.ipynb"))
-    for path in notebooks:
-        code = ["".join(c["source"]) for c in json.loads(path.read_text())["cells"] if c["cell_type"] == "code"]
-        if any(f'"{stem}' in cell and ("to_csv" in cell or "save_table" in cell) for cell in code):
-            return path.name
-    numbered = [path.name for path in notebooks if path.name[:3] == name[:3] and name[:2].isdigit()]
-    return numbered[0] if numbered else "the notebook that writes it"
-
-
 def read_result(profile: Profile, name: str, **read_options) -> pd.DataFrame:
     """A result CSV of a profile (``read_options`` go to pandas), or a ValueError naming the
     notebook that writes it."""
     path = profile.output_dir / name
     if not path.exists():
+        from softflow.report.registry import writer  # the registry reads sweeps through this module
+
         notebook = writer(name)
         raise ValueError(
             f"{path} is missing: run notebooks/{notebook} with profile {profile.name!r} first "
