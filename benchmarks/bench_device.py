@@ -24,7 +24,7 @@ import torch
 from results_file import write_results
 
 from softflow import data, training
-from softflow.models.registry import model_spec
+from softflow.models.specs import model_spec
 from softflow.profiles import get_profile
 
 MODELS = ("mlp", "lstm", "transformer", "rf", "forward", "rf-fwd")  # RF-FWD needs its surrogate

@@ -33,7 +33,7 @@ from softflow import control, data, hardware, training
 from softflow.control.loop import WATCHDOG
 from softflow.data import recordings
 from softflow.models.checkpoints import checkpoint_path
-from softflow.models.registry import CONTROLLERS, MODELS
+from softflow.models.specs import CONTROLLERS, MODELS
 from softflow.profiles import PROFILES, STUDY_PROFILES, get_profile
 from softflow.report import model_cards, tables
 from softflow.rod.dynamics import GRAVITY_DIRECTIONS, Simulator

@@ -5,7 +5,7 @@ import pytest
 from small_runs import QUICK, QUICK_SEQUENCE, SMALL
 
 from softflow import data, training
-from softflow.models.registry import model_spec
+from softflow.models.specs import model_spec
 from softflow.profiles import SEQUENCE_MODELS
 
 

@@ -12,7 +12,7 @@ import torch
 
 from softflow import control, data, training
 from softflow.models import checkpoints
-from softflow.models.registry import resolved_kwargs
+from softflow.models.specs import resolved_kwargs
 from softflow.profiles import Profile, TrainConfig
 from softflow.rod import rod_folder
 from softflow.rod.dynamics import Simulator

@@ -19,7 +19,7 @@ import torch
 from test_recordings import point_mass_run, tiny_training
 
 from softflow import HW_ROBOT, SIM_ROBOT, TWO_SEGMENT_ROD, Simulator, cli, control, data, recordings
-from softflow.models.registry import CONTROLLERS, resolved_kwargs
+from softflow.models.specs import CONTROLLERS, resolved_kwargs
 from softflow.report import model_cards
 from softflow.studies import two_segment
 

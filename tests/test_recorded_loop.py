@@ -22,7 +22,7 @@ from softflow.control import loop
 from softflow.control.planning import Controller
 from softflow.data.dataset import Dataset
 from softflow.data.smoothing import _filter
-from softflow.models.registry import build_model
+from softflow.models.specs import build_model
 
 DELAY = 6  # periods of 10 ms
 EXAMPLE = Path(__file__).parents[1] / "examples" / "run_loop.py"

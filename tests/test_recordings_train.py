@@ -16,7 +16,7 @@ from test_recordings import TINY, point_mass_run
 from softflow import cli, control, recordings
 from softflow.control import planning
 from softflow.models import checkpoints
-from softflow.models.registry import build_model
+from softflow.models.specs import build_model
 from softflow.profiles import PROFILES
 
 

@@ -10,10 +10,10 @@ import pytest
 from small_runs import report_profile, write_sweep
 
 from softflow import report
-from softflow.report import registry, results_page, sections
+from softflow.report import result_files, results_page, sections
 from softflow.rod.robots import HW_ROBOT
 from softflow.store import REPO
-from softflow.studies.registry import STUDIES
+from softflow.studies.catalogue import STUDIES
 from softflow.studies.study import FLOOR
 from softflow.studies.table1 import TABLE1
 
@@ -29,7 +29,7 @@ def profile(tmp_path, monkeypatch):
 
 def write_results(profile):
     rows = []
-    for k, model in enumerate(report.MODELS):
+    for k, model in enumerate(report.TABLE1_MODELS):
         rows += [
             dict(model=model, reference="circle", family="shape", rmse_mm=1.0 + k, phase_lag_s=0.01, input_energy=5.0),
             dict(model=model, reference="heart", family="shape", rmse_mm=3.0 + k, phase_lag_s=0.03, input_energy=5.0),
@@ -72,21 +72,21 @@ def test_a_missing_result_names_the_notebook_that_writes_it(profile):
 
 def test_every_committed_result_file_is_registered_and_its_notebook_writes_it():
     """The registry names every file under figures/ and no other; each entry's notebook has a
-    cell that names it (a study table through written / written_summary, any other by its stem)."""
-    assert set(registry.RESULT_FILES) == {path.name for path in (REPO / "figures").glob("*.csv")}
+    cell that names it (a study table through write_table / write_summary, any other by its stem)."""
+    assert set(result_files.RESULT_FILES) == {path.name for path in (REPO / "figures").glob("*.csv")}
     sources = {}
-    for name, entry in registry.RESULT_FILES.items():
+    for name, entry in result_files.RESULT_FILES.items():
         if entry.notebook not in sources:
             cells = json.loads((REPO / "notebooks" / entry.notebook).read_text())["cells"]
             sources[entry.notebook] = "\n".join("".join(c["source"]) for c in cells if c["cell_type"] == "code")
         code = sources[entry.notebook]
         study = getattr(entry, "studies", ("",))[0]
         named = f'"{name}"' in code or f'"{name.removesuffix(".csv")}' in code
-        assert named or f'written_summary("{study}"' in code, f"{entry.notebook} does not write {name}"
-    assert registry.writer("results_baselines.csv") == "03_baselines.ipynb"
-    assert registry.writer("twin_sensitivity.csv") == "06_hardware_replay.ipynb"
+        assert named or f'write_summary("{study}"' in code, f"{entry.notebook} does not write {name}"
+    assert result_files.writer("results_baselines.csv") == "03_baselines.ipynb"
+    assert result_files.writer("twin_sensitivity.csv") == "06_hardware_replay.ipynb"
     with pytest.raises(ValueError, match="'nobody_writes.csv' is not a registered result file"):
-        registry.writer("nobody_writes.csv")
+        result_files.writer("nobody_writes.csv")
 
 
 @pytest.mark.parametrize("study", [s for s in STUDIES if STUDIES[s].notebook])
@@ -145,7 +145,7 @@ def study_rows():
 def test_study_tables_carry_intervals_the_floor_and_a_verdict():
     rows = study_rows()
     table = report.table1_ci(rows)
-    assert list(table.index) == [*report.MODELS, FLOOR]
+    assert list(table.index) == [*report.TABLE1_MODELS, FLOOR]
     assert table.loc["mlp", "shape_mm"].startswith("5.60 [") and table.loc[FLOOR, "random_mm"].startswith("0.10")
     assert table.loc["mlp", "shape_seeds x refs"] == "3 x 2" and table.loc[FLOOR, "shape_seeds x refs"] == "1 x 2"
     verdict = report.best_against_best(rows)
@@ -159,7 +159,7 @@ def test_study_tables_carry_intervals_the_floor_and_a_verdict():
     assert verdict.loc["random", "verdict"] == "no ranking"
     conditions = rows.assign(condition="table1", coverage=1.0)
     grid = report.protocol_table(conditions)
-    assert list(grid.columns) == [*report.MODELS, FLOOR, "coverage"]
+    assert list(grid.columns) == [*report.TABLE1_MODELS, FLOOR, "coverage"]
     assert grid.loc["table1", "lstm"] == pytest.approx(6.6)
 
 

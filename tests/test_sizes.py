@@ -6,7 +6,7 @@ import pytest
 
 from softflow import control, data, training
 from softflow.models import checkpoints, model_spec
-from softflow.models.registry import CONTROLLERS, build_model
+from softflow.models.specs import CONTROLLERS, build_model
 from softflow.profiles import TrainConfig
 
 DT = 1 / 12  # s

@@ -19,7 +19,7 @@ from softflow.data.recordings import load_dataset as load_recordings
 from softflow.models.checkpoints import find_checkpoint, identity, load_checkpoint, model_from_checkpoint
 from softflow.models.common import one_thread
 from softflow.models.flow import RectifiedFlow
-from softflow.models.registry import CONTROLLERS
+from softflow.models.specs import CONTROLLERS
 from softflow.profiles import get_profile
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import DT, SIM_ROBOT, U_MAX, Robot, rod_folder

@@ -6,7 +6,7 @@ and the foundation: never the rod (RF-Physical's prior is passed in) nor the dat
 from softflow.lazy import facade
 
 EXPORTS = {
-    "registry": ["MODELS", "ModelSpec", "build_model", "model_spec", "resolved_kwargs"],
+    "specs": ["MODELS", "ModelSpec", "build_model", "model_spec", "resolved_kwargs"],
     "checkpoints": [
         "SHIPPED",
         "TRAINED",

@@ -11,7 +11,7 @@ from pathlib import Path
 import torch
 
 from softflow.models.common import Dims
-from softflow.models.registry import build_model, resolved_kwargs
+from softflow.models.specs import build_model, resolved_kwargs
 from softflow.profiles import TrainConfig
 from softflow.store import DATA_DIR, REPO, atomic_write
 

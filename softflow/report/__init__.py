@@ -7,7 +7,7 @@ from softflow.lazy import facade
 EXPORTS = {
     "tables": [
         "COLUMNS",
-        "MODELS",
+        "TABLE1_MODELS",
         "BASELINES",
         "RF_FAMILY",
         "LABELS",

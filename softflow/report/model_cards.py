@@ -13,9 +13,9 @@ import pandas as pd
 from softflow.data.dataset import dataset_path
 from softflow.models.checkpoints import SHIPPED, checkpoint_path, load_checkpoint
 from softflow.models.common import Dims
-from softflow.models.registry import CONTROLLERS, model_spec, resolved_kwargs
+from softflow.models.specs import CONTROLLERS, model_spec, resolved_kwargs
 from softflow.profiles import get_profile
-from softflow.report.tables import LABELS, MODELS, markdown, read_result, read_sweep, table1, table3
+from softflow.report.tables import LABELS, TABLE1_MODELS, markdown, read_result, read_sweep, table1, table3
 from softflow.rod.dynamics import GRAVITY_DIRECTIONS
 from softflow.rod.robots import HW_ROBOT, ROBOTS, SIM_ROBOT, TWO_SEGMENT_ROD, Robot, rod_folder
 from softflow.store import REPO
@@ -24,7 +24,11 @@ from softflow.studies.one_step import TWO_SEGMENT_TIP
 README = SHIPPED / "README.md"
 ROD_CONSTANTS = {SIM_ROBOT.name: "SIM_ROBOT", HW_ROBOT.name: "HW_ROBOT", TWO_SEGMENT_ROD.name: "TWO_SEGMENT_ROD"}
 PROFILE = "paper"  # only paper-profile, seed-0 models ship (models.checkpoints.checkpoint_path)
-ORDER = [*MODELS, *(name for name in CONTROLLERS if name not in MODELS), "forward"]  # Table I order, then the rest
+ORDER = [
+    *TABLE1_MODELS,
+    *(name for name in CONTROLLERS if name not in TABLE1_MODELS),
+    "forward",
+]  # Table I order, then the rest
 WHAT = {
     "mlp": "inverse MLP: u_t from (x_t, x_{t+1})",
     "mlp-physical": "inverse MLP that also reads the quasi-static prior u_phys(p_{t+1})",

@@ -12,7 +12,7 @@ from pathlib import Path
 import jinja2
 import pandas as pd
 
-from softflow.models.registry import resolved_kwargs
+from softflow.models.specs import resolved_kwargs
 from softflow.profiles import Profile
 from softflow.report import sections
 from softflow.report.tables import LABELS

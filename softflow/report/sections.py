@@ -13,7 +13,7 @@ from pathlib import Path
 import jinja2
 import pandas as pd
 
-from softflow.models.registry import label
+from softflow.models.specs import label
 from softflow.profiles import Profile
 from softflow.report.study_tables import (
     best_against_best,
@@ -30,7 +30,7 @@ from softflow.report.study_tables import (
 )
 from softflow.report.tables import BASELINES, LABELS, RF_FAMILY, computed_rows, markdown, read_result, read_sweep
 from softflow.studies import loop, one_step, stats, trunk, trunk_v2
-from softflow.studies.registry import STUDIES
+from softflow.studies.catalogue import STUDIES
 from softflow.studies.study import FLOOR
 
 TEMPLATES = Path(__file__).with_name("templates")

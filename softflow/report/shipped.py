@@ -31,7 +31,7 @@ from softflow.data.references import references_spec
 from softflow.hardware import recorder
 from softflow.hardware.gap import RealityGap
 from softflow.models.checkpoints import checkpoint_path, load_checkpoint, matches
-from softflow.models.registry import resolved_kwargs
+from softflow.models.specs import resolved_kwargs
 from softflow.rod.dynamics import GRAVITY_DIRECTIONS, Simulator
 from softflow.rod.robots import ROBOTS, Robot, rod_folder
 from softflow.rod.statics import table_spec

@@ -14,7 +14,7 @@ import pandas as pd
 from softflow.control.metrics import table_rows
 from softflow.data import OBSERVATIONS
 from softflow.hardware.gap import GAP_TERMS
-from softflow.report.tables import BASELINES, LABELS, MODELS, RF_FAMILY
+from softflow.report.tables import BASELINES, LABELS, RF_FAMILY, TABLE1_MODELS
 from softflow.studies import stats
 from softflow.studies.closed_loop import CAMERA_LATENCY, LOOP_MODES
 from softflow.studies.design import VARIANTS as DESIGN_VARIANTS
@@ -26,7 +26,7 @@ from softflow.studies.two_segment import FLOOR_OBSERVATION
 
 def table_order(names) -> list:
     """The models among ``names`` in Table I order, the floor last."""
-    return [m for m in (*MODELS, FLOOR) if m in set(names)]
+    return [m for m in (*TABLE1_MODELS, FLOOR) if m in set(names)]
 
 
 def interval_text(summary: pd.DataFrame, digits: int = 2) -> pd.Series:
@@ -337,7 +337,7 @@ TWO_SEGMENT_STEP = (
 )
 _RANKS = {  # the order of a two-segment table's rows: observations as the study lists them, models as Table I
     "observation": {name: k for k, name in enumerate((*OBSERVATIONS, FLOOR_OBSERVATION))},
-    "model": {name: k for k, name in enumerate((*MODELS, FLOOR))},
+    "model": {name: k for k, name in enumerate((*TABLE1_MODELS, FLOOR))},
 }
 
 

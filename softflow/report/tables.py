@@ -11,11 +11,11 @@ import numpy as np
 import pandas as pd
 
 from softflow.control.metrics import table_rows
-from softflow.models.registry import MODELS as MODEL_SPECS
+from softflow.models.specs import MODELS as MODEL_SPECS
 from softflow.profiles import Profile
 from softflow.rod.robots import HW_ROBOT
 from softflow.store import DATA_DIR, write_text
-from softflow.studies.registry import STUDIES
+from softflow.studies.catalogue import STUDIES
 from softflow.studies.study import FLOOR
 
 COLUMNS = {
@@ -24,8 +24,8 @@ COLUMNS = {
     "phase_lag_shape_s": "phase_lag_s",
     "input_energy_random": "input_energy",
 }  # metrics.table_rows -> the paper's table headings
-MODELS = ["mlp", "lstm", "transformer", "rf", "rf-physical", "rf-fwd"]
-BASELINES, RF_FAMILY = MODELS[:3], MODELS[3:]
+TABLE1_MODELS = ["mlp", "lstm", "transformer", "rf", "rf-physical", "rf-fwd"]
+BASELINES, RF_FAMILY = TABLE1_MODELS[:3], TABLE1_MODELS[3:]
 
 LABELS = {name: spec.label for name, spec in MODEL_SPECS.items() if spec.label} | {FLOOR: "ILC floor (true simulator)"}
 # The paper's numbers (Tables I-IV of the paper in ../shared/paper).
@@ -59,7 +59,7 @@ def read_result(profile: Profile, name: str, **read_options) -> pd.DataFrame:
     notebook that writes it."""
     path = profile.output_dir / name
     if not path.exists():
-        from softflow.report.registry import writer  # the registry reads sweeps through this module
+        from softflow.report.result_files import writer  # result_files reads sweeps through this module
 
         notebook = writer(name)
         raise ValueError(
@@ -103,7 +103,7 @@ def computed_rows(profile: Profile, study: str) -> pd.DataFrame:
 
 def our_table(profile: Profile) -> pd.DataFrame:
     frame = pd.concat([read_result(profile, "results_baselines.csv"), read_result(profile, "results_rf.csv")])
-    return table_rows(frame).rename(columns=COLUMNS).reindex(MODELS)
+    return table_rows(frame).rename(columns=COLUMNS).reindex(TABLE1_MODELS)
 
 
 def table1(profile: Profile) -> pd.DataFrame:
@@ -115,7 +115,7 @@ def table1(profile: Profile) -> pd.DataFrame:
 def table2(profile: Profile) -> pd.DataFrame:
     """Phase lag on shapes (s) and input energy on random references: ours beside the paper's."""
     ours = our_table(profile)[["phase_lag_s", "input_energy"]]
-    return _beside(ours, PAPER_TABLE2.reindex(MODELS))
+    return _beside(ours, PAPER_TABLE2.reindex(TABLE1_MODELS))
 
 
 def table3(profile: Profile) -> pd.DataFrame:

@@ -5,7 +5,7 @@ report.
 from softflow.lazy import facade
 
 EXPORTS = {
-    "registry": ["STUDIES"],
+    "catalogue": ["STUDIES"],
     "study": ["FLOOR", "Study", "trained", "floor_rows", "held_out_plan", "unnamed"],
 }
 SUBMODULES = [

@@ -27,7 +27,7 @@ from softflow.data.variants import VARIANTS, variant_dataset
 from softflow.profiles import FIXED_BUDGET
 from softflow.rod.dynamics import Simulator
 from softflow.store import cached_arrays
-from softflow.studies.study import Grid, held_out_plan, trained, unnamed
+from softflow.studies.study import Grid, held_out_plan, training_spec, unnamed
 from softflow.studies.table1 import table1_references
 
 
@@ -179,4 +179,4 @@ def per_step_scores(controller: Controller, dataset: data.Dataset, draws: int) -
 
 
 def models(cell: dict, profile_name: str) -> dict:
-    return trained(cell["model"], AMBIGUITY[profile_name].budget(profile_name), seed=cell["seed"])
+    return training_spec(cell["model"], AMBIGUITY[profile_name].budget(profile_name), seed=cell["seed"])

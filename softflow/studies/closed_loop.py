@@ -17,7 +17,7 @@ from softflow.profiles import get_profile
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import HW_ROBOT
 from softflow.store import cached_arrays
-from softflow.studies.study import Grid, trained
+from softflow.studies.study import Grid, training_spec
 
 LOOP_MODES = {  # mode -> hardware.run_twin options (repetitions: the profile's)
     "open": dict(loop="open"),
@@ -158,4 +158,4 @@ def identified_twin(sim: Simulator, gap: hardware.RealityGap, seconds: float, wo
 
 
 def models(cell: dict, profile_name: str) -> dict:
-    return trained(cell["model"], get_profile(profile_name))
+    return training_spec(cell["model"], get_profile(profile_name))

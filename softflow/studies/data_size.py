@@ -10,7 +10,7 @@ from softflow.control.planning import Controller, evaluate
 from softflow.profiles import FIXED_BUDGET, get_profile
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import SIM_ROBOT
-from softflow.studies.study import Grid, held_out_plan, trained, unnamed
+from softflow.studies.study import Grid, held_out_plan, training_spec, unnamed
 from softflow.studies.table1 import table1_references
 
 
@@ -63,4 +63,4 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
 
 
 def models(cell: dict, profile_name: str) -> dict:
-    return trained(cell["model"], DATA_SIZE[profile_name].budget(profile_name), seed=cell["seed"])
+    return training_spec(cell["model"], DATA_SIZE[profile_name].budget(profile_name), seed=cell["seed"])

@@ -12,7 +12,7 @@ from softflow.data.references import evaluation_references
 from softflow.profiles import get_profile
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import SIM_ROBOT
-from softflow.studies.study import Grid, trained, unnamed
+from softflow.studies.study import Grid, training_spec, unnamed
 
 # variant -> (model, its arguments beyond the registry's); one seed each: a screen, which the
 # fwd_lambda study (notebook 11) repeats with three seeds at the full budget.
@@ -60,4 +60,4 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
 
 def models(cell: dict, profile_name: str) -> dict:
     name, kwargs = VARIANTS[cell["variant"]]
-    return trained(name, _short_budget(profile_name), kwargs)
+    return training_spec(name, _short_budget(profile_name), kwargs)

@@ -13,7 +13,7 @@ from softflow.control.planning import Controller, evaluate
 from softflow.profiles import get_profile
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import SIM_ROBOT
-from softflow.studies.study import Grid, held_out_plan, trained, unnamed
+from softflow.studies.study import Grid, held_out_plan, training_spec, unnamed
 from softflow.studies.table1 import table1_references
 
 
@@ -122,4 +122,7 @@ def _model(weight: float) -> tuple[str, dict | None]:
 def models(cell: dict, profile_name: str) -> dict:
     name, kwargs = _model(cell["consistency"])
     profile = get_profile(profile_name)
-    return {**trained(name, profile, kwargs, cell["seed"]), **trained("forward", profile, seed=cell["seed"])}
+    return {
+        **training_spec(name, profile, kwargs, cell["seed"]),
+        **training_spec("forward", profile, seed=cell["seed"]),
+    }

@@ -42,7 +42,7 @@ from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import HW_ROBOT
 from softflow.store import content_key
 from softflow.studies import stats
-from softflow.studies.study import Grid, recorded_cell_model, trained
+from softflow.studies.study import Grid, recorded_cell_model, training_spec
 
 RECORDED_GAP, TRACKED_GAP = TYPICAL_GAP, FRICTION_GAP
 GRAVITY = "vertical"
@@ -190,7 +190,7 @@ def models(cell: dict, profile_name: str) -> dict:
     """The model's arguments and budget, and how its runs were recorded and read."""
     grid = LOOP[profile_name]
     return dict(
-        trained(cell["model"], grid.budget(profile_name), seed=cell["seed"]),
+        training_spec(cell["model"], grid.budget(profile_name), seed=cell["seed"]),
         recordings=dict(
             training=recording_settings(profile_name, TRAINING_SEED, grid.runs),
             held_out=recording_settings(profile_name, HELD_OUT_SEED, grid.held_out),

@@ -31,12 +31,12 @@ import pandas as pd
 
 from softflow import data, training
 from softflow.control.planning import Controller, evaluate
-from softflow.models.registry import label
+from softflow.models.specs import label
 from softflow.profiles import FIXED_BUDGET, get_profile
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import SIM_ROBOT, TWO_SEGMENT_ROD
 from softflow.studies import stats, two_segment
-from softflow.studies.study import Grid, trained, unnamed
+from softflow.studies.study import Grid, training_spec, unnamed
 from softflow.studies.table1 import table1_references
 
 PAPER_ROD, TWO_SEGMENT_TIP = "paper", "two-segment-tip"
@@ -156,4 +156,4 @@ def _ratio_row(rod: str, family: str, model: str, other: str, interval: stats.In
 
 
 def models(cell: dict, profile_name: str) -> dict:
-    return trained(cell["model"], ONE_STEP[profile_name].budget(profile_name), seed=cell["seed"])
+    return training_spec(cell["model"], ONE_STEP[profile_name].budget(profile_name), seed=cell["seed"])

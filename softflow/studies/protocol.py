@@ -32,7 +32,7 @@ from softflow.data.references import (
 from softflow.profiles import get_profile
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import DT, SIM_ROBOT
-from softflow.studies.study import FLOOR, Grid, floor_rows, trained, unnamed
+from softflow.studies.study import FLOOR, Grid, floor_rows, training_spec, unnamed
 from softflow.studies.table1 import TABLE1
 
 APPROACHES = ("excluded", "scored", "on-path")
@@ -164,4 +164,4 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
 
 
 def models(cell: dict, profile_name: str) -> dict:
-    return {} if cell["model"] == FLOOR else trained(cell["model"], get_profile(profile_name))
+    return {} if cell["model"] == FLOOR else training_spec(cell["model"], get_profile(profile_name))

@@ -26,7 +26,7 @@ from softflow.rod.robots import HW_ROBOT
 from softflow.store import content_key
 from softflow.studies import ambiguity
 from softflow.studies.closed_loop import CAMERA_LATENCY, learning_options, mode_options
-from softflow.studies.study import Grid, recorded_cell_model, trained
+from softflow.studies.study import Grid, recorded_cell_model, training_spec
 
 GAPS = {"friction": hardware.FRICTION_GAP, "typical": hardware.TYPICAL_GAP}  # the cell's gap by name
 RECORDINGS, SIMULATOR = "recordings", "simulator"  # what a cell's model was trained on
@@ -291,7 +291,7 @@ def models(cell: dict, profile_name: str) -> dict:
     """The trained models' arguments and budgets; for a model of recordings also how its runs
     were recorded and read, so a changed setting recomputes the rows."""
     if cell["trained_on"] == SIMULATOR:
-        return trained(cell["model"], get_profile(profile_name))
+        return training_spec(cell["model"], get_profile(profile_name))
     grid, gravity, gap = RECORDED[profile_name], cell["gravity"], cell["gap"]
     recording = dict(
         training=recording_settings(profile_name, gravity, gap, TRAINING_SEED),
@@ -302,4 +302,4 @@ def models(cell: dict, profile_name: str) -> dict:
         split_seed=SPLIT_SEED,
         loader=recordings.RECORDINGS_VERSION,
     )
-    return dict(trained(cell["model"], grid.budget(profile_name), seed=cell["seed"]), recordings=recording)
+    return dict(training_spec(cell["model"], grid.budget(profile_name), seed=cell["seed"]), recordings=recording)

@@ -10,7 +10,7 @@ import torch
 
 from softflow import data, training
 from softflow.profiles import Profile, TrainConfig
-from softflow.studies.study import trained
+from softflow.studies.study import training_spec
 
 SMOKE_DATA = Profile("smoke", n_episodes=20, episode_seconds=1.0)  # 16 / 2 / 2 episodes: train / val / test
 
@@ -50,6 +50,6 @@ def _config(seed: int) -> TrainConfig:
 
 
 def models(cell: dict, profile_name: str) -> dict:
-    return trained(
+    return training_spec(
         cell["model"], replace(SMOKE_DATA, train=_config(cell["seed"])), {"hidden": cell["hidden"]}, cell["seed"]
     )

@@ -15,7 +15,7 @@ import numpy as np
 from softflow import data, training
 from softflow.control import floor
 from softflow.control.planning import Controller, SaturationWarning, score
-from softflow.models.registry import model_spec, resolved_kwargs
+from softflow.models.specs import model_spec, resolved_kwargs
 from softflow.profiles import Profile, TrainConfig, get_profile
 from softflow.rod.dynamics import Simulator
 
@@ -32,7 +32,7 @@ class Study:
     arguments (its rows are cached by them). ``workdir`` is the study's folder, for files
     cells share (datasets) or own (name those by ``key``).
     ``models(cell, profile_name)``: what the cell's rows depend on of the models it trains or
-    loads (``trained``: their resolved arguments and budgets), part of each row's key, so that a
+    loads (``training_spec``: their resolved arguments and budgets), part of each row's key, so that a
     changed default or budget recomputes the rows instead of serving stale ones.
     ``version``: bump it when a change alters the numbers run_cell returns; every cached row
     of the study is then recomputed.
@@ -64,7 +64,7 @@ class Grid:
         return get_profile(profile_name) if self.train is None else fixed_budget(profile_name, self.train)
 
 
-def trained(name: str, profile: Profile, model_kwargs: dict | None = None, seed: int = 0) -> dict:
+def training_spec(name: str, profile: Profile, model_kwargs: dict | None = None, seed: int = 0) -> dict:
     """{model: its resolved arguments and training budget} for model ``name`` trained with the
     profile's budget and ``seed``, and for the models it requires (RF-FWD's surrogate)."""
     names = (name, *model_spec(name).requires)

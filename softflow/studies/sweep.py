@@ -32,7 +32,7 @@ from softflow.checks import check_choice
 from softflow.machine import cpu_model
 from softflow.profiles import STUDY_PROFILES, get_profile
 from softflow.store import DATA_DIR, REPO, content_key, write_text
-from softflow.studies.registry import STUDIES
+from softflow.studies.catalogue import STUDIES
 
 SWEEPS_DIR = DATA_DIR / "sweeps"  # cached rows, the study's datasets and models, result CSVs
 SHIPPED_RESULTS = REPO / "figures" / "sweeps"  # every profile's rows, committed

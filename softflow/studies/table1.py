@@ -16,7 +16,7 @@ from softflow.data.references import (
 from softflow.profiles import get_profile
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import SIM_ROBOT
-from softflow.studies.study import FLOOR, Grid, floor_rows, trained, unnamed
+from softflow.studies.study import FLOOR, Grid, floor_rows, training_spec, unnamed
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -88,4 +88,4 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
 
 
 def models(cell: dict, profile_name: str) -> dict:
-    return {} if cell["model"] == FLOOR else trained(cell["model"], get_profile(profile_name), seed=cell["seed"])
+    return {} if cell["model"] == FLOOR else training_spec(cell["model"], get_profile(profile_name), seed=cell["seed"])

@@ -39,11 +39,11 @@ import torch
 from softflow import data, training
 from softflow.control.planning import Controller, recorded_range
 from softflow.data import recordings
-from softflow.models.registry import label
+from softflow.models.specs import label
 from softflow.profiles import FIXED_BUDGET, TrainConfig
 from softflow.store import REPO, cached_arrays
 from softflow.studies import ambiguity, stats
-from softflow.studies.study import Grid, fixed_budget, recorded_cell_model, trained
+from softflow.studies.study import Grid, fixed_budget, recorded_cell_model, training_spec
 
 TRUNK = REPO / "datasets" / "asl_trunk"
 TRAINING_RUN, HELD_OUT = "random_1", ("random_2", "circles")
@@ -321,8 +321,10 @@ def judge_model(profile_name: str, delay: int, device: str, workdir: Path):
 def models(cell: dict, profile_name: str) -> dict:
     """What a cell's rows depend on: its model's arguments and budget, the judge's, the data."""
     grid = TRUNK_GRID[profile_name]
-    judge = trained(JUDGE, fixed_budget(profile_name, grid.judge))
-    planner = {} if cell["model"] in NAIVE else trained(cell["model"], grid.budget(profile_name), seed=cell["seed"])
+    judge = training_spec(JUDGE, fixed_budget(profile_name, grid.judge))
+    planner = (
+        {} if cell["model"] in NAIVE else training_spec(cell["model"], grid.budget(profile_name), seed=cell["seed"])
+    )
     return dict(planner=planner, judge=judge, loader=recordings.LOADER_REVISION, max_gap=MAX_GAP, windows=grid.windows)
 
 

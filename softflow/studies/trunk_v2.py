@@ -52,11 +52,11 @@ import pandas as pd
 from softflow import data
 from softflow.control.planning import Controller, SaturationWarning, recorded_range
 from softflow.data import recordings
-from softflow.models.registry import label
+from softflow.models.specs import label
 from softflow.profiles import FIXED_BUDGET, TrainConfig
 from softflow.store import cached_arrays
 from softflow.studies import ambiguity, judges, stats, trunk
-from softflow.studies.study import Grid, recorded_cell_model, trained
+from softflow.studies.study import Grid, recorded_cell_model, training_spec
 
 TRAINING_RUNS = ("random_1", "payload_100g", "payload_300g")
 HELD_OUT = trunk.HELD_OUT  # random_2, circles
@@ -271,7 +271,9 @@ def judge_of(kind: str, scored: str, delay: int, grid: TrunkV2Grid, workdir: Pat
 def models(cell: dict, profile_name: str) -> dict:
     """What a cell's rows depend on: its planner's arguments and budget, the judges' settings, the data."""
     grid = GRID[profile_name]
-    planner = {} if cell["model"] in REFEREE else trained(cell["model"], grid.budget(profile_name), seed=cell["seed"])
+    planner = (
+        {} if cell["model"] in REFEREE else training_spec(cell["model"], grid.budget(profile_name), seed=cell["seed"])
+    )
     return dict(
         planner=planner,
         judges=dict(judges.settings(), runs=JUDGE_RUNS),

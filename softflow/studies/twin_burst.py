@@ -12,7 +12,7 @@ from softflow.data.references import (
 from softflow.profiles import get_profile
 from softflow.studies import stress
 from softflow.studies.closed_loop import CAMERA_LATENCY, LOOP_GRID, learning_options, twin_setup
-from softflow.studies.study import Grid, trained
+from softflow.studies.study import Grid, training_spec
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -57,4 +57,4 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
 
 
 def models(cell: dict, profile_name: str) -> dict:
-    return trained(cell["model"], get_profile(profile_name))
+    return training_spec(cell["model"], get_profile(profile_name))

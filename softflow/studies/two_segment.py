@@ -27,13 +27,13 @@ from softflow.data.references import (
     shape_reference,
 )
 from softflow.models.checkpoints import checkpoint_path
-from softflow.models.registry import model_spec
+from softflow.models.specs import model_spec
 from softflow.profiles import FIXED_BUDGET, PROFILES, Profile
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import TWO_SEGMENT_ROD, rod_folder
 from softflow.store import atomic_write, cached_arrays
 from softflow.studies import ambiguity
-from softflow.studies.study import FLOOR, Grid, floor_rows, held_out_plan, trained, unnamed
+from softflow.studies.study import FLOOR, Grid, floor_rows, held_out_plan, training_spec, unnamed
 
 GRAVITY = "vertical"
 FLOOR_OBSERVATION = "simulator"  # the floor's cell: it learns on the true simulator, it observes nothing
@@ -308,4 +308,4 @@ def _models_root(workdir: Path, profile_name: str, observation: str) -> Path:
 def models(cell: dict, profile_name: str) -> dict:
     if cell["model"] == FLOOR:
         return {}
-    return trained(cell["model"], TWO_SEGMENT[profile_name].budget(profile_name), seed=cell["seed"])
+    return training_spec(cell["model"], TWO_SEGMENT[profile_name].budget(profile_name), seed=cell["seed"])

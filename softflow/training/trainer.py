@@ -30,7 +30,7 @@ from softflow.models.checkpoints import (
     save_checkpoint,
 )
 from softflow.models.common import one_thread
-from softflow.models.registry import build_model, model_spec
+from softflow.models.specs import build_model, model_spec
 from softflow.profiles import Profile, TrainConfig
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import SIM_ROBOT, Robot, rod_folder

@@ -2,7 +2,7 @@
 
 A ``StudyTable`` is made from the studies' shipped rows alone: the entry names the studies whose
 rows it reads and the function that turns them into the table; notebooks make and write these only
-through ``written``, and a test regenerates every one from `figures/sweeps/` and fails where a
+through ``write_table``, and a test regenerates every one from `figures/sweeps/` and fails where a
 committed file differs, so a table cannot go stale behind the rows it claims to show. A
 ``Written`` file is one no test regenerates (rollouts of the shipped models, a simulation, a wall
 time, or a notebook's own table that nothing in the report reads): the entry names its notebook
@@ -21,7 +21,7 @@ from softflow.report import study_tables
 from softflow.report.tables import read_sweep
 from softflow.store import write_text
 from softflow.studies import loop, one_step, trunk, trunk_v2
-from softflow.studies.registry import STUDIES
+from softflow.studies.catalogue import STUDIES
 
 
 @dataclass(frozen=True)
@@ -172,7 +172,7 @@ def regenerate(name: str, profile: Profile) -> pd.DataFrame:
     return _tables([name], {study: read_sweep(profile, study) for study in entry.studies})[name]
 
 
-def written(name: str, profile: Profile, *rows: pd.DataFrame) -> pd.DataFrame:
+def write_table(name: str, profile: Profile, *rows: pd.DataFrame) -> pd.DataFrame:
     """The registered table ``name`` made from ``rows`` (the rows of its studies, in the entry's
     order) and written under the profile's output folder, as a notebook shows and writes it: by
     construction what ``regenerate`` makes from the same rows."""
@@ -184,8 +184,8 @@ def written(name: str, profile: Profile, *rows: pd.DataFrame) -> pd.DataFrame:
     return table
 
 
-def written_summary(study: str, profile: Profile, rows: pd.DataFrame, suffix: str = "") -> dict[str, pd.DataFrame]:
-    """``written`` for every part of a study's ``summarise`` (``SUMMARIES``), each in its file,
+def write_summary(study: str, profile: Profile, rows: pd.DataFrame, suffix: str = "") -> dict[str, pd.DataFrame]:
+    """``write_table`` for every part of a study's ``summarise`` (``SUMMARIES``), each in its file,
     ``summarise`` run once (``suffix``: "_paper" for the paper profile's tables beside a ci run's):
     {part: table}."""
     if study not in SUMMARIES:
