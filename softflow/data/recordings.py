@@ -57,10 +57,10 @@ MAX_GAP = 0.2  # s: the longest run of lost frames the smoother bridges, at leas
 # trunk's disks reach 6-12 m/s^2 (99.9th percentile over 50 ms; 13-22 at most) and its frames
 # have 0.003-0.008 mm of noise; the twin's camera noise alone makes at most 13 m/s^2 at 30 fps.
 JUMP_ACCELERATION = 50.0  # m/s^2
+JUMP_NOISE = 10.0  # and by more than this many times the point's median departure (noisy cameras)
 HELD, JUMPED = 1, 2  # why a frame was lost (lost_frames)
 BRIDGED_FRAMES = 5  # a slow camera's run of this many lost frames is bridged whatever max_gap says
 STILL_QUANTA = 3  # a point moving by at most this many steps of its resolution is still (_held)
-JUMP_NOISE = 10.0  # and by more than this many times the point's median departure (noisy cameras)
 MAX_DELAY = 0.5  # s: the longest input-to-motion delay estimated (at most a quarter of the run)
 DELAY_FOLDS = 5  # contiguous blocks of the run, each held out once when scoring a delay
 DELAY_SPREAD = 2  # periods: estimates whose quartiles lie further apart are warned about
@@ -120,11 +120,6 @@ class _Table:
     or JUMPED frames, counted per column in ``frozen`` and ``jumps``), the commands' period (s)
     and each tip column's camera's (k,) (s: the median interval between its frames as written)."""
 
-    def bridged(self, max_gap: float) -> np.ndarray:
-        """The longest run without a frame the smoother bridges, per tip column (k,) s: max_gap,
-        or BRIDGED_FRAMES lost frames in a row of that column's camera where it is slower."""
-        return np.maximum(max_gap, (BRIDGED_FRAMES + 1) * np.nan_to_num(self.frame_period))
-
     source: str
     times: np.ndarray
     inputs: np.ndarray
@@ -136,6 +131,11 @@ class _Table:
     lost: np.ndarray
     frozen: np.ndarray
     jumps: np.ndarray
+
+    def bridged(self, max_gap: float) -> np.ndarray:
+        """The longest run without a frame the smoother bridges, per tip column (k,) s: max_gap,
+        or BRIDGED_FRAMES lost frames in a row of that column's camera where it is slower."""
+        return np.maximum(max_gap, (BRIDGED_FRAMES + 1) * np.nan_to_num(self.frame_period))
 
     def rows(self, keep: np.ndarray, source: str) -> _Table:
         """The table of the rows ``keep`` (R,) bool, named ``source``."""
