@@ -12,7 +12,7 @@ import pandas as pd
 from softflow.machine import description
 from softflow.profiles import Profile
 from softflow.report.provenance import commit, recorded_wall_times
-from softflow.report.sections import filled, regime_map_rows, rendered, sections
+from softflow.report.sections import filled, regime_map_rows, rendered, sections, span
 from softflow.report.study_tables import (
     best_against_best,
     floor_progress,
@@ -208,6 +208,15 @@ def consistency_term_summary(diagnostics: pd.DataFrame, small: float = 0.05, mid
     floor = diagnostics["residual_floor"].iloc[0]
     ratio = diagnostics[f"one_step_residual_tau{middle:g}"] / floor
     one_step, euler = diagnostics[f"one_step_u_error_tau{small:g}"], diagnostics[f"euler_u_error_tau{small:g}"]
+    spans = {  # "a-b", as notebook 11 prints them
+        name: span(values, f"{{:.{digits}f}}", "-")
+        for name, values, digits in (
+            ("tip", diagnostics.forward_step_mm, 3),
+            ("one_step", one_step, 4),
+            ("times", one_step / euler, 1),
+            ("euler", euler, 4),
+        )
+    }
     below = (
         " (below 1: the flow's estimate suits the surrogate's own error better than the true u does)"
         if ratio.min() < 1
@@ -218,19 +227,13 @@ def consistency_term_summary(diagnostics: pd.DataFrame, small: float = 0.05, mid
         f"without the term (RF) and {' / '.join(f'{e:.4f}' for e in weighted.u_rmse_test)} N at lambda = "
         f"{' / '.join(f'{w:g}' for w in weighted.index)}. The term penalises the frozen surrogate's miss for the "
         f"one-step estimate of u; at the true u the surrogate already misses by a residual of {floor:.4f} "
-        f"(normalised increment, RMS; its one-step tip error is {_range_text(diagnostics.forward_step_mm, 3)} mm). "
+        f"(normalised increment, RMS; its one-step tip error is {spans['tip']} mm). "
         f"The estimate's residual at tau = {middle:g} is {ratio.loc[0.0]:.2f} times that without the term and "
         f"{ratio.loc[strongest]:.2f} times at lambda = {strongest:g}{below}. At tau = {small:g} the one-step "
-        f"estimate misses u by {_range_text(one_step, 4)} N, {_range_text(one_step / euler, 1)} times a short Euler "
-        f"rollout from the same tau ({_range_text(euler, 4)} N): early on the path the term judges a cruder u than "
+        f"estimate misses u by {spans['one_step']} N, {spans['times']} times a short Euler "
+        f"rollout from the same tau ({spans['euler']} N): early on the path the term judges a cruder u than "
         f"the flow's own sampler gives."
     )
-
-
-def _range_text(values, digits: int = 2) -> str:
-    """ "a" or "a-b": the span of some positive numbers, as notebook 11's summary prints it."""
-    low, high = min(values), max(values)
-    return f"{low:.{digits}f}" if round(low, digits) == round(high, digits) else f"{low:.{digits}f}-{high:.{digits}f}"
 
 
 def design_choices(profile: Profile) -> list[str]:

@@ -125,10 +125,10 @@ def difference(row, prefix: str = "", estimate: str = "difference_mm") -> dict:
     )
 
 
-def span(values, form: str = "{:+.2f}") -> str:
-    """ "a to b" over ``values`` in ``form`` (one value: itself)."""
+def span(values, form: str = "{:+.2f}", joint: str = " to ") -> str:
+    """ "a to b" over ``values`` in ``form`` (one value: itself; ``joint`` "-" makes "a-b")."""
     low, high = form.format(min(values)), form.format(max(values))
-    return low if low == high else f"{low} to {high}"
+    return low if low == high else f"{low}{joint}{high}"
 
 
 def tally(verdicts) -> str:

@@ -19,9 +19,9 @@ import nbformat
 from bs4 import BeautifulSoup
 from nbconvert import HTMLExporter
 
+from softflow.report.sections import TEMPLATES
 from softflow.store import REPO, write_text
 
-TEMPLATES = Path(__file__).with_name("templates")
 RESULTS = "results.html"
 
 
