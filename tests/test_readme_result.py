@@ -31,23 +31,24 @@ def test_a_block_replaces_only_what_lies_between_the_markers():
             readme.with_block(broken, "NEW")
 
 
-def test_the_words_are_the_verdict_tables_words():
-    """A comparison is quoted with its table's verdict, whichever it is: a made-up table whose
-    ranking Holm removes is printed so, and one without a ranking ranks nothing."""
+def test_the_words_are_made_from_the_judgement():
+    """A comparison is quoted in the words its judgement makes: a ranking Holm removes is printed
+    so, none ranks nothing, and ``sides`` names a study's two sides."""
     table = pd.DataFrame(
         dict(
-            best_rf=["rf", "rf-fwd"],
-            best_baseline=["mlp", "lstm"],
-            difference_mm=[-1.234, 0.5],
-            low=[-2.0, -0.1],
-            high=[-0.5, 1.2],
-            verdict=["RF lower (not after Holm)", "no ranking"],
-        ),
-        index=pd.MultiIndex.from_tuples([("tip", "shape"), ("tip+disk", "random")], names=["observation", "family"]),
+            a=["rf", "rf-fwd", "rf"],
+            b=["mlp", "lstm", "mlp"],
+            estimate=[-1.234, 0.5, 2.0],
+            low=[-2.0, -0.1, 1.0],
+            high=[-0.5, 1.2, 3.0],
+            lower=["rf", None, "mlp"],
+            kept_after_holm=[False, False, True],
+        )
     )
-    words = [sections.difference(row) for _, row in table.iterrows()]
-    assert [w["verdict"] for w in words] == ["RF lower (not after Holm)", "no ranking"]
+    words = [sections.difference(row) for row in table.itertuples()]
+    assert [w["verdict"] for w in words] == ["RF lower (not after Holm)", "no ranking", "MLP lower"]
     assert (words[0]["mm"], words[0]["interval"]) == ("-1.23", "[-2.00, -0.50]")
+    assert sections.verdict(next(table.iloc[2:].itertuples()), ("recordings", "simulator")) == "simulator lower"
 
 
 def test_the_committed_speed_block_is_what_the_bench_csvs_make():

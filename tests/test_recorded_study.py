@@ -292,19 +292,22 @@ def model_rule_rows() -> pd.DataFrame:
 
 def test_the_recording_rule_compares_the_better_of_each_side():
     table = study_tables.recording_rule(rule_rows())
-    assert list(table.index) == [("vertical", 12), ("vertical", 60)]
-    assert set(table.best_simulator) == {"rf-fwd | friction, simulator, open-calibrated"}
-    assert list(table.best_recorded) == ["mlp | friction, 12 runs", "rf | friction, 60 runs"]
-    np.testing.assert_allclose(table.difference_mm, [0.05, -1.95])  # the recorded seeds' mean is +0.05
-    assert list(table.verdict) == ["no ranking", "recordings lower"]
+    assert list(zip(table.gravity, table.runs)) == [("vertical", 12), ("vertical", 60)]
+    assert set(table.b) == {"rf-fwd | friction, simulator, open-calibrated"}
+    assert list(table.a) == ["mlp | friction, 12 runs", "rf | friction, 60 runs"]
+    np.testing.assert_allclose(table.estimate, [0.05, -1.95])  # the recorded seeds' mean is +0.05
+    assert [sections.verdict(row, sections.RECORDING_SIDES) for row in table.itertuples()] == [
+        "no ranking",
+        "recordings lower",
+    ]
 
 
 def test_the_model_rule_ranks_on_the_most_runs_and_sees_friction_change_the_winner():
     table = study_tables.recorded_model_rule(model_rule_rows())
-    assert list(table.index) == [("vertical", "friction"), ("vertical", "typical")]
-    assert list(table.best_baseline) == ["mlp", "mlp"] and list(table.best_rf) == ["rf", "rf"]
-    np.testing.assert_allclose(table.difference_mm, [-2.0, 2.0])
-    assert list(table.verdict) == ["RF lower", "MLP lower"] and set(table.friction_changes) == {"yes"}
+    assert list(zip(table.gravity, table.gap)) == [("vertical", "friction"), ("vertical", "typical")]
+    assert list(table.b) == ["mlp", "mlp"] and list(table.a) == ["rf", "rf"]
+    np.testing.assert_allclose(table.estimate, [-2.0, 2.0])
+    assert list(table.lower) == ["rf", "mlp"] and set(table.friction_changes) == {"yes"}
 
 
 def test_the_answer_says_each_verdict_whichever_way_and_whether_friction_changes_the_best(tmp_path, monkeypatch):

@@ -148,15 +148,16 @@ def test_study_tables_carry_intervals_the_floor_and_a_verdict():
     assert list(table.index) == [*report.TABLE1_MODELS, FLOOR]
     assert table.loc["mlp", "shape_mm"].startswith("5.60 [") and table.loc[FLOOR, "random_mm"].startswith("0.10")
     assert table.loc["mlp", "shape_seeds x refs"] == "3 x 2" and table.loc[FLOOR, "shape_seeds x refs"] == "1 x 2"
-    verdict = report.best_against_best(rows)
-    assert verdict.loc["shape", ["best_rf", "best_baseline"]].tolist() == ["rf-fwd", "mlp"]
-    assert verdict.loc["shape", "difference_mm"] == pytest.approx(-1.0)
-    assert verdict.loc["shape", "high"] < 0 and verdict.loc["shape", "verdict"] == "RF-FWD lower"
+    verdict = report.best_against_best(rows).set_index("family")
+    assert verdict.loc["shape", ["a", "b"]].tolist() == ["rf-fwd", "mlp"]
+    assert verdict.loc["shape", "estimate"] == pytest.approx(-1.0)
+    assert verdict.loc["shape", "high"] < 0 and verdict.loc["shape", "lower"] == "rf-fwd"
     assert verdict.loc["shape", ["t_low", "t_high"]].tolist() == pytest.approx([-1.0, -1.0])  # the same on both
     # random: the bootstrap excludes 0, the t-interval on differences -1, -2 (t 12.71, 1 dof) does not
-    assert verdict.loc["random", "best_rf"] == "rf-fwd" and verdict.loc["random", "high"] < 0
+    assert verdict.loc["random", "a"] == "rf-fwd" and verdict.loc["random", "high"] < 0
     assert verdict.loc["random", ["t_low", "t_high"]].tolist() == pytest.approx([-1.5 - 6.353, -1.5 + 6.353], abs=1e-3)
-    assert verdict.loc["random", "verdict"] == "no ranking"
+    assert pd.isna(verdict.loc["random", "lower"])
+    assert [sections.verdict(row) for row in verdict.itertuples()] == ["RF-FWD lower", "no ranking"]
     conditions = rows.assign(condition="table1", coverage=1.0)
     grid = report.protocol_table(conditions)
     assert list(grid.columns) == [*report.TABLE1_MODELS, FLOOR, "coverage"]
@@ -190,16 +191,17 @@ def ambiguity_rows(noise=0.1):
 
 
 def test_regime_map_pairs_each_flow_with_the_mlp_per_variant():
-    table = report.regime_map(ambiguity_rows())
-    assert table.loc[("folded", "rf"), "shape_mm"] == pytest.approx(-2.0)
-    assert table.loc[("folded", "rf"), "shape_verdict"] == "RF lower"
-    assert table.loc[("paper", "rf"), "random_mm"] == pytest.approx(0.0, abs=1e-12)
-    assert table.loc[("paper", "rf"), "random_verdict"] == "no ranking"
-    assert table.loc[("paper", "rf"), "step_N"] == pytest.approx(0.0, abs=1e-12)
+    table = report.regime_map(ambiguity_rows()).set_index(["variant", "a", "family"])
+    assert table.loc[("folded", "rf", "shape"), "estimate"] == pytest.approx(-2.0)
+    assert table.loc[("folded", "rf", "shape"), "lower"] == "rf"
+    assert table.loc[("paper", "rf", "random"), "estimate"] == pytest.approx(0.0, abs=1e-12)
+    assert pd.isna(table.loc[("paper", "rf", "random"), "lower"])
+    assert table.loc[("paper", "rf", "step"), "estimate"] == pytest.approx(0.0, abs=1e-12)
     # one random reference: the bootstrap over seeds excludes 0, a t-interval needs two references
-    folded = table.loc[("folded", "rf")]
-    assert folded.random_high < 0 and np.isnan(folded.random_t_low) and folded.random_verdict == "no ranking"
-    assert folded.step_verdict == "no ranking"  # one number per model: no references to pair over
+    random = table.loc[("folded", "rf", "random")]
+    assert random.high < 0 and np.isnan(random.t_low) and pd.isna(random.lower)
+    step = table.loc[("folded", "rf", "step")]  # one number per model: no references to pair over
+    assert pd.isna(step.lower) and np.isnan(step.holm_p)  # and out of the map's Holm family
 
 
 def write_closed_loop(out):
@@ -255,14 +257,14 @@ def data_size_rows(noise=0.1):
 
 
 def test_size_effects_separate_the_prior_from_being_generative():
-    table = report.size_effects(data_size_rows())
-    assert table.loc[(100, "prior, flow", "shape"), "difference_mm"] == pytest.approx(-1.0)
-    assert table.loc[(300, "generative, with prior", "random"), "difference_mm"] == pytest.approx(-0.5)
+    table = report.size_effects(data_size_rows()).set_index(["episodes", "effect", "family"])
+    assert table.loc[(100, "prior, flow", "shape"), "estimate"] == pytest.approx(-1.0)
+    assert table.loc[(300, "generative, with prior", "random"), "estimate"] == pytest.approx(-0.5)
     assert table.loc[(300, "generative, with prior", "random"), ["t_low", "t_high"]].tolist() == pytest.approx(
         [-0.5, -0.5]
     )
-    assert table.loc[(300, "generative, with prior", "random"), "verdict"] == "RF-Physical lower"
-    assert table.loc[(100, "prior, regression", "shape"), "verdict"] == "MLP-Physical lower"
+    assert table.loc[(300, "generative, with prior", "random"), "lower"] == "rf-physical"
+    assert table.loc[(100, "prior, regression", "shape"), "lower"] == "mlp-physical"
 
 
 def fwd_lambda_rows(offsets, noise=0.1):
@@ -297,9 +299,10 @@ def test_lambda_decision_changes_the_default_only_when_better_on_both_families()
             {0.0: {"shape": -1.0}, 0.1: {"shape": -1.0, "random": -0.5}, 0.3: {"shape": -1.0, "random": -0.8}, 1.0: {}}
         )
     )
-    assert chosen == 0.3 and table.loc[0.1, "better_on_both"] and not table.loc[0.0, "better_on_both"]
-    assert table["chosen"].tolist() == [False, False, True]
-    assert table.loc[0.0, "random_mm"] == pytest.approx(0.0, abs=1e-12)
+    weights = table.groupby("a")[["better_on_both", "chosen"]].all()
+    assert chosen == 0.3 and weights.loc[0.1, "better_on_both"] and not weights.loc[0.0, "better_on_both"]
+    assert weights["chosen"].tolist() == [False, False, True]
+    assert table.set_index(["a", "family"]).loc[(0.0, "random"), "estimate"] == pytest.approx(0.0, abs=1e-12)
     _, chosen = report.lambda_decision(fwd_lambda_rows({0.0: {"shape": -1.0, "random": 0.5}, 1.0: {}}))
     assert chosen == 1.0
 
@@ -310,9 +313,10 @@ def test_lambda_decision_needs_the_t_interval_too():
     table, chosen = report.lambda_decision(
         fwd_lambda_rows({0.3: {"shape": -1.0, "random": (-0.2, -0.8, -1.4)}, 1.0: {}})
     )
-    assert table.loc[0.3, "random_high"] < 0 and table.loc[0.3, "shape_high"] < 0
-    assert table.loc[0.3, ["random_t_low", "random_t_high"]].tolist() == pytest.approx([-2.2905, 0.6905], abs=1e-3)
-    assert not table.loc[0.3, "better_on_both"] and chosen == 1.0
+    by_family = table.set_index("family")
+    assert by_family.loc["random", "high"] < 0 and by_family.loc["shape", "high"] < 0
+    assert by_family.loc["random", ["t_low", "t_high"]].tolist() == pytest.approx([-2.2905, 0.6905], abs=1e-3)
+    assert not table.better_on_both.any() and chosen == 1.0
 
 
 def test_the_ambiguity_and_data_size_answers_state_only_what_both_intervals_rank(profile):
@@ -384,24 +388,17 @@ def test_floor_progress_counts_references_still_improving_at_the_last_trial():
 
 
 def test_verdict_counts_count_what_each_rule_ranks():
-    def interval(low, high, prefix=""):
-        return {f"{prefix}low": low, f"{prefix}high": high}
+    def compared(family, low, high, t_low=np.nan, t_high=np.nan):
+        return dict(family=family, low=low, high=high, t_low=t_low, t_high=t_high)
 
     table1 = pd.DataFrame(
-        [
-            {**interval(-2, -1), **interval(-3, -0.5, "t_")},  # both rank it
-            {**interval(1, 2), **interval(-1, 4, "t_")},  # the bootstrap alone
-        ]
+        [compared("shape", -2, -1, -3, -0.5), compared("random", 1, 2, -1, 4)]  # both rank it; the bootstrap alone
     )
     regimes = pd.DataFrame(
         [
-            {
-                **interval(-1, 1, "shape_"),
-                **interval(-1, 1, "shape_t_"),  # neither
-                **interval(1, 2, "random_"),
-                **interval(0.5, 3, "random_t_"),  # both
-                **interval(0.1, 0.2, "step_"),  # the bootstrap only: no t-interval per step
-            }
+            compared("shape", -1, 1, -1, 1),  # neither
+            compared("random", 1, 2, 0.5, 3),  # both
+            compared("step", 0.1, 0.2),  # the bootstrap only: no t-interval per step
         ]
     )
     counts = report.verdict_counts({"table1": table1, "ambiguity": regimes})

@@ -43,7 +43,7 @@ def test_a_notebook_writes_what_the_registry_regenerates(tmp_path, monkeypatch):
     paper = get_profile("paper")
     names = [f"15_one_step_{part}_paper.csv" for part in ("rmse", "parity", "tip_win", "collapse")]
     expected = {name: result_files.regenerate(name, paper).to_csv(index=False) for name in names}
-    expected["12_differences.csv"] = result_files.regenerate("12_differences.csv", paper).to_csv()
+    expected["12_differences.csv"] = result_files.regenerate("12_differences.csv", paper).to_csv(index=False)
     one_step, two_segment = (pd.read_csv(FIGURES / "sweeps" / f"{s}-paper.csv") for s in ("one_step", "two_segment"))
     monkeypatch.setattr(profiles, "REPO", tmp_path)  # the profile's results go to tmp_path/figures
     (tmp_path / "figures").mkdir()

@@ -134,27 +134,58 @@ def test_holm_by_hand():
         stats.holm([0.2, 5.0])
 
 
-def test_verdict_words_and_what_holm_removes():
-    assert stats.verdict(-1, "RF", "MLP") == "RF lower" and stats.verdict(1, "RF", "MLP") == "MLP lower"
-    assert stats.verdict(0, "RF", "MLP", holm_p=0.001) == "no ranking"
-    assert stats.verdict(-1, "RF", "MLP", holm_p=0.049) == "RF lower"
-    assert stats.verdict(-1, "RF", "MLP", holm_p=0.06) == "RF lower (not after Holm)"
-    with pytest.raises(ValueError, match="side"):
-        stats.verdict(2, "RF", "MLP")
+def comparison(low, high, t_low, t_high, p, a="rf", b="mlp", family="shape") -> dict:
+    return dict(family=family, a=a, b=b, estimate=(low + high) / 2, low=low, high=high, t_low=t_low, t_high=t_high, p=p)
 
 
 def test_a_family_of_verdicts_is_adjusted_together():
     """Two comparisons, each ranked by both intervals at 95 %, with t-test p-values 0.03 and
-    0.04: alone each holds; as one family Holm makes them 0.06 and 0.06, so both say so."""
-    table = pd.DataFrame(
-        dict(low=[-2.0, -2.0], high=[-1.0, -1.0], t_low=[-2.0, -2.0], t_high=[-0.1, -0.1], t_p=[0.03, 0.04]),
-        index=["shape", "random"],
+    0.04: alone each holds; as one family Holm makes them 0.06 and 0.06, so neither is kept."""
+    both = [comparison(-2.0, -1.0, -2.0, -0.1, 0.03), comparison(-2.0, -1.0, -2.0, -0.1, 0.04, family="random")]
+    table = stats.judged(both)
+    assert list(table.columns) == list(stats.COMPARISON)
+    np.testing.assert_allclose(table.holm_p, [0.06, 0.06])
+    assert list(table.lower) == ["rf", "rf"] and not table.kept_after_holm.any()
+    alone = stats.judged(both[:1])
+    assert alone.lower.tolist() == ["rf"] and alone.kept_after_holm.tolist() == [True]
+
+
+def test_a_ranking_needs_both_intervals_and_the_family():
+    """The higher side is named where both intervals lie above zero; one interval across zero, or
+    a comparison left out of the family, ranks nothing and is not adjusted."""
+    rows = [
+        comparison(1.0, 2.0, 0.5, 2.5, 0.01),  # b lower
+        comparison(-2.0, -1.0, -2.5, 0.5, 0.2),  # the t-interval crosses zero
+        comparison(-2.0, -1.0, -2.5, -0.5, 0.001),  # ranked, but out of the family
+    ]
+    table = stats.judged(rows, in_family=[True, True, False])
+    assert table.lower[0] == "mlp" and table.lower[1:].isna().all()
+    np.testing.assert_allclose(table.holm_p[:2], [0.02, 0.2])
+    assert np.isnan(table.holm_p[2]) and table.kept_after_holm.tolist() == [True, False, False]
+    with pytest.raises(ValueError, match="in_family"):
+        stats.judged(rows, in_family=[True])
+
+
+def test_best_against_best_picks_each_groups_lowest_mean():
+    """Per family the lowest-mean model of each group, picked on ``by`` where given; a family
+    where one group has no model is left out."""
+    rows = pd.DataFrame(
+        [
+            dict(model=m, seed=0, reference=f"R{r}", family=f, rmse_mm=base + r, other=o)
+            for f in ("shape", "random")
+            for m, base, o in (("rf", 1.0, 9.0), ("rf-fwd", 2.0, 0.0), ("mlp", 3.0, 5.0), ("lstm", 4.0, 1.0))
+            for r in range(3)
+        ]
     )
-    verdicts = stats.family_verdicts(table, lambda index, row: ("RF", "MLP"))
-    np.testing.assert_allclose(verdicts.holm_p, [0.06, 0.06])
-    assert list(verdicts.verdict) == ["RF lower (not after Holm)"] * 2
-    alone = stats.family_verdicts(table.iloc[:1], lambda index, row: ("RF", "MLP"))
-    assert list(alone.verdict) == ["RF lower"]
+    picked = stats.best_against_best(rows, (("rf", "rf-fwd"), ("mlp", "lstm")), observation="tip")
+    assert [(c["observation"], c["family"], c["a"], c["b"]) for c in picked] == [
+        ("tip", "shape", "rf", "mlp"),
+        ("tip", "random", "rf", "mlp"),
+    ]
+    assert picked[0]["estimate"] == pytest.approx(-2.0)
+    by_other = stats.best_against_best(rows, (("rf", "rf-fwd"), ("mlp", "lstm")), ("shape",), by="other")
+    assert (by_other[0]["a"], by_other[0]["b"], by_other[0]["estimate"]) == ("rf-fwd", "lstm", pytest.approx(-2.0))
+    assert stats.best_against_best(rows[rows.model != "mlp"], (("rf",), ("mlp",))) == []
 
 
 def test_a_ratio_of_means_is_paired_over_references():

@@ -5,7 +5,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from softflow.studies import STUDIES, sweep, trunk
+from softflow.studies import STUDIES, stats, sweep, trunk
 
 
 def test_naive_planners():
@@ -67,9 +67,9 @@ def made_rows(naive_gap: float) -> pd.DataFrame:
 
 def test_the_rule_ranks_where_both_intervals_agree_and_the_judge_tells_naive_from_recorded():
     rule = trunk.flow_rule(made_rows(naive_gap=4.0)).set_index("observation")
-    assert rule.loc["tip", "verdict"] == "RF lower" and rule.loc["tip", "difference_mm"] == pytest.approx(-1, abs=0.05)
-    assert rule.loc["disks", "verdict"] == "no ranking"
-    check = trunk.judge_check(made_rows(naive_gap=4.0)).set_index("planner")
+    assert rule.loc["tip", "lower"] == "rf" and rule.loc["tip", "estimate"] == pytest.approx(-1, abs=0.05)
+    assert pd.isna(rule.loc["disks", "lower"]) and rule.judge_passes.all()
+    check = trunk.judge_check(made_rows(naive_gap=4.0)).set_index("a")
     assert check.tells_apart["training-mean"] and not check.tells_apart["persistence"]  # persistence gates nothing
 
 
@@ -78,8 +78,12 @@ def test_the_answer_to_notebook_12_reads_the_rule_registered_before_any_row_not_
     assert trunk.notebook_12_answer(trunk.flow_rule(made_rows(naive_gap=0.0))) == "neither"  # the judge ranks nothing
 
     def rule(tip, disks):  # (bootstrap high, t high, holm p) of the best flow's difference per observation
-        return pd.DataFrame(
-            dict(observation=["tip", "disks"], **dict(zip(["high", "t_high", "holm_p"], np.transpose([tip, disks]))))
+        made = [
+            dict(family="f", a="rf", b="mlp", estimate=-0.5, low=-1.0, high=high, t_low=-1.0, t_high=t_high, p=p)
+            for high, t_high, p in (tip, disks)
+        ]
+        return stats.judged(made, in_family=[np.isfinite(p) for *_, p in (tip, disks)]).assign(
+            observation=["tip", "disks"]
         )
 
     lower, not_after_holm, t_straddles = (-0.3, -0.7, 0.01), (-0.3, -0.7, 0.0517), (-0.3, 0.05, 0.1)
@@ -92,7 +96,7 @@ def test_the_answer_to_notebook_12_reads_the_rule_registered_before_any_row_not_
 
 def test_a_judge_that_cannot_tell_the_training_mean_from_its_floor_ranks_nothing():
     rule = trunk.flow_rule(made_rows(naive_gap=0.0)).set_index("observation")
-    assert rule.loc["tip", "verdict"].startswith("no ranking (the judge does not tell")
+    assert pd.isna(rule.loc["tip", "lower"]) and not rule.judge_passes.any()
     assert not trunk.judge_check(made_rows(naive_gap=0.0)).tells_apart.any()
 
 

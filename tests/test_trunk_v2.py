@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from softflow.studies import STUDIES, judges, sweep, trunk_v2
+from softflow.studies import STUDIES, judges, stats, sweep, trunk_v2
 
 
 def test_the_energy_score_of_one_draw_is_its_error_and_of_two_draws_half_their_distance():
@@ -36,29 +36,45 @@ def test_the_aligned_error_finds_a_plan_sent_three_periods_early():
     assert trunk_v2.aligned_error(plan, u, 2)[0] == 2  # beyond the range: the nearest lag it may take
 
 
-def comparison(ridge=-3.0, kernel=-2.0, resolution=1.0, holm_p=0.01, width=0.5):
-    """One row of ``flow_rule``: each judge's difference with intervals of half-width ``width``."""
-    row = dict(observation="tip", family="random_2, 0.5 s", best_flow="rf", best_baseline="mlp")
-    for kind, d in (("ridge", ridge), ("kernel", kernel)):
-        row |= {f"{kind}_difference": d, f"{kind}_low": d - width, f"{kind}_high": d + width}
-        row |= {f"{kind}_t_low": d - width, f"{kind}_t_high": d + width, f"{kind}_holm_p": holm_p}
-    return pd.Series(row | dict(resolution_mm=resolution))
+def comparison(ridge=-3.0, kernel=-2.0, resolution=1.0, holm_p=0.01, width=0.5) -> pd.DataFrame:
+    """One comparison of ``flow_rule``, RF against the MLP: each judge's row, its difference with
+    intervals of half-width ``width`` and the p of a family of one."""
+    judged = [
+        stats.judged(
+            [
+                dict(
+                    family="random_2, 0.5 s",
+                    a="rf",
+                    b="mlp",
+                    estimate=d,
+                    low=d - width,
+                    high=d + width,
+                    t_low=d - width,
+                    t_high=d + width,
+                    p=holm_p,
+                )
+            ],
+            in_family=[np.isfinite(resolution)],
+        ).assign(judge=kind)
+        for kind, d in (("ridge", ridge), ("kernel", kernel))
+    ]
+    return pd.concat(judged).assign(resolution_mm=resolution)
 
 
 @pytest.mark.parametrize(
-    "changes, verdict",
+    "changes, lower",
     [
-        ({}, "RF lower"),
-        (dict(ridge=3.0, kernel=2.0), "MLP lower"),
-        (dict(kernel=2.0), "not resolved by the judges"),  # the judges disagree in sign
-        (dict(resolution=2.5), "not resolved by the judges"),  # the kernel's 2 mm is within a judge's resolution
-        (dict(resolution=np.nan), "not resolved by the judges"),  # a judge separates no perturbation there
-        (dict(holm_p=0.06), "not resolved by the judges"),
-        (dict(width=2.5), "not resolved by the judges"),  # the kernel's intervals cross zero
+        ({}, "rf"),
+        (dict(ridge=3.0, kernel=2.0), "mlp"),
+        (dict(kernel=2.0), None),  # the judges disagree in sign
+        (dict(resolution=2.5), None),  # the kernel's 2 mm is within a judge's resolution
+        (dict(resolution=np.nan), None),  # a judge separates no perturbation there
+        (dict(holm_p=0.06), None),
+        (dict(width=2.5), None),  # the kernel's intervals cross zero
     ],
 )
-def test_a_difference_ranks_only_where_every_judge_agrees_beyond_its_resolution(changes, verdict):
-    assert trunk_v2._verdict(comparison(**changes)) == verdict
+def test_a_difference_ranks_only_where_every_judge_agrees_beyond_its_resolution(changes, lower):
+    assert trunk_v2.rule_lower(comparison(**changes)) == lower
 
 
 def test_a_judge_that_rates_a_known_worse_input_better_than_the_recorded_ones_judges_nothing_there():
@@ -92,17 +108,13 @@ def test_a_judge_that_rates_a_known_worse_input_better_than_the_recorded_ones_ju
 
 def test_the_answer_reads_the_verdicts_of_each_observation():
     def rule(tip, disks):
-        return pd.DataFrame(
-            dict(observation=["tip", "disks"], best_flow="rf", best_baseline="mlp", verdict=[tip, disks])
-        )
+        return pd.DataFrame(dict(observation=["tip", "disks"], a="rf", b="mlp", rule_lower=[tip, disks]))
 
-    unresolved = "not resolved by the judges"
-    assert trunk_v2.notebook_12_answer(rule("RF lower", unresolved)) == "confirms"
-    assert trunk_v2.notebook_12_answer(rule(unresolved, "RF lower")) == "reverses"
-    assert trunk_v2.notebook_12_answer(rule("RF lower", "RF lower")) == "both"
-    assert trunk_v2.notebook_12_answer(rule("MLP lower", unresolved)) == "neither"
-    assert trunk_v2.notebook_12_answer(rule(unresolved, unresolved)) == "not resolved"
-    assert trunk_v2.notebook_12_answer(rule(trunk_v2.UNJUDGED, trunk_v2.UNJUDGED)) == "not resolved"
+    assert trunk_v2.notebook_12_answer(rule("rf", None)) == "confirms"
+    assert trunk_v2.notebook_12_answer(rule(None, "rf")) == "reverses"
+    assert trunk_v2.notebook_12_answer(rule("rf", "rf")) == "both"
+    assert trunk_v2.notebook_12_answer(rule("mlp", None)) == "neither"
+    assert trunk_v2.notebook_12_answer(rule(None, None)) == "not resolved"
 
 
 @pytest.mark.parametrize("profile", ["ci", "paper"])

@@ -85,16 +85,16 @@ def test_table_one_per_observation_with_the_floor_last_and_only_zero_plans(rows)
 
 
 def test_decision_rule_per_family_where_both_groups_have_rows(rows):
-    differences = study_tables.two_segment_differences(rows)
+    differences = study_tables.two_segment_differences(rows).set_index(["observation", "family"])
     assert differences.index.tolist() == [("tip", "shape"), ("tip", "random"), ("tip", "path3d")]  # tip+disk: no RF yet
     shape = differences.loc[("tip", "shape")]
-    assert (shape.best_rf, shape.best_baseline) == ("rf", "mlp")
-    assert shape.difference_mm == pytest.approx(-1.0) and shape.high < 0 and shape.t_high < 0
-    assert shape.verdict == "RF lower"
-    assert differences.loc[("tip", "random"), "verdict"] == "no ranking"
-    path3d = differences.loc[("tip", "path3d")]  # one path in rotations: no verdict, out of the Holm family
-    assert path3d.verdict == study_tables.ROTATED_WORDS and np.isnan(path3d.holm_p)
-    assert shape.holm_p == pytest.approx(min(1.0, 2 * min(shape.t_p, differences.loc[("tip", "random"), "t_p"])))
+    assert (shape.a, shape.b) == ("rf", "mlp")
+    assert shape.estimate == pytest.approx(-1.0) and shape.high < 0 and shape.t_high < 0
+    assert shape.lower == "rf" and shape.kept_after_holm
+    assert pd.isna(differences.loc[("tip", "random"), "lower"])
+    path3d = differences.loc[("tip", "path3d")]  # one path in rotations: not ranked, out of the Holm family
+    assert pd.isna(path3d.lower) and np.isnan(path3d.holm_p)
+    assert shape.holm_p == pytest.approx(min(1.0, 2 * min(shape.p, differences.loc[("tip", "random"), "p"])))
 
 
 def test_the_answer_says_each_verdict_whichever_way(rows, tmp_path, monkeypatch):
@@ -112,7 +112,7 @@ def test_the_answer_says_each_verdict_whichever_way(rows, tmp_path, monkeypatch)
 
 def test_best_against_best_keeps_its_families_and_leaves_out_one_without_both_groups(rows):
     tip = rows[(rows.observation == "tip") & (rows.plan == "zero")]
-    assert study_tables.best_against_best(tip).index.tolist() == ["shape", "random"]  # the default, as before
+    assert study_tables.best_against_best(tip).family.tolist() == ["shape", "random"]  # the default, as before
     baselines_only = rows[rows.observation == "tip+disk"]
     assert study_tables.best_against_best(baselines_only, families=("shape", "path3d")).empty
 
@@ -142,12 +142,12 @@ def test_the_regime_map_places_each_observation_as_a_variant(rows):
     assert set(variants.variant) == {"two segments, tip", "two segments, tip+disk"}
     assert set(variants.family) == {"shape", "random"} and "ilc-floor" not in set(variants.model)
     regimes = study_tables.regime_map(variants)
-    assert list(regimes.index) == [("two segments, tip", "rf")]
-    tip = regimes.loc[("two segments, tip", "rf")]
-    assert tip.conditional_spread == 0.5 and tip.spread_floor == 0.2
-    assert tip.shape_mm == pytest.approx(-1.0) and tip.shape_high < 0 and "lower" in tip.shape_verdict
-    assert tip.random_verdict.startswith("no ranking")
-    assert tip.step_N == pytest.approx(-0.1)
+    assert set(zip(regimes.variant, regimes.a)) == {("two segments, tip", "rf")}
+    tip = regimes.set_index("family")
+    assert (tip.conditional_spread == 0.5).all() and (tip.spread_floor == 0.2).all()
+    assert tip.estimate["shape"] == pytest.approx(-1.0) and tip.high["shape"] < 0 and tip.lower["shape"] == "rf"
+    assert pd.isna(tip.lower["random"])
+    assert tip.estimate["step"] == pytest.approx(-0.1)
     assert study_tables.two_segment_variants(rows.iloc[:0]).empty
 
 

@@ -25,21 +25,25 @@ class ModelSpec:
     label: str  # the name tables and verdicts print ("" for RF-FWD's surrogate, never one of theirs)
     kwargs: dict = field(default_factory=dict)
     requires: tuple[str, ...] = ()  # models trained first and passed to ``attach`` by name
+    group: str = ""  # the studies' sides: "regression" (the baselines) or "flow" ("": neither)
 
 
 MODELS = {
-    "mlp": ModelSpec(InverseMLP, "MLP"),
-    "mlp-physical": ModelSpec(PhysicalMLP, "MLP-Physical"),
-    "lstm": ModelSpec(InverseLSTM, "LSTM", {"context": 10}),
-    "transformer": ModelSpec(InverseTransformer, "Transformer", {"context": 10}),
+    "mlp": ModelSpec(InverseMLP, "MLP", group="regression"),
+    "mlp-physical": ModelSpec(PhysicalMLP, "MLP-Physical", group="regression"),
+    "lstm": ModelSpec(InverseLSTM, "LSTM", {"context": 10}, group="regression"),
+    "transformer": ModelSpec(InverseTransformer, "Transformer", {"context": 10}, group="regression"),
     "forward": ModelSpec(ForwardModel, ""),
-    "rf": ModelSpec(RectifiedFlow, "RF"),
-    "rf-physical": ModelSpec(RectifiedFlow, "RF-Physical", {"prior": True}),
-    "rf-fwd": ModelSpec(RectifiedFlow, "RF-FWD", {"consistency": 1.0}, requires=("forward",)),
-    "rf-1": ModelSpec(MeanFlow, "RF-1", {"steps": 1}),
-    "rf-fwd-1": ModelSpec(MeanFlow, "RF-FWD-1", {"steps": 1, "consistency": 1.0}, requires=("forward",)),
-    "rf-physical-1": ModelSpec(MeanFlow, "RF-Physical-1", {"steps": 1, "prior": True}),
+    "rf": ModelSpec(RectifiedFlow, "RF", group="flow"),
+    "rf-physical": ModelSpec(RectifiedFlow, "RF-Physical", {"prior": True}, group="flow"),
+    "rf-fwd": ModelSpec(RectifiedFlow, "RF-FWD", {"consistency": 1.0}, requires=("forward",), group="flow"),
+    "rf-1": ModelSpec(MeanFlow, "RF-1", {"steps": 1}, group="flow"),
+    "rf-fwd-1": ModelSpec(MeanFlow, "RF-FWD-1", {"steps": 1, "consistency": 1.0}, requires=("forward",), group="flow"),
+    "rf-physical-1": ModelSpec(MeanFlow, "RF-Physical-1", {"steps": 1, "prior": True}, group="flow"),
 }
+# The studies' two sides: each model's group, in this order (best flow against best baseline).
+FLOWS = tuple(name for name, spec in MODELS.items() if spec.group == "flow")
+BASELINES = tuple(name for name, spec in MODELS.items() if spec.group == "regression")
 # What load_controller loads: every inverse model, not RF-FWD's forward surrogate.
 CONTROLLERS = tuple(name for name, spec in MODELS.items() if spec.cls is not ForwardModel)
 

@@ -12,7 +12,7 @@ import pandas as pd
 from softflow.machine import description
 from softflow.profiles import Profile
 from softflow.report.provenance import commit, recorded_wall_times
-from softflow.report.sections import filled, regime_map_rows, rendered, sections, span
+from softflow.report.sections import filled, regime_map_rows, rendered, sections, span, verdict
 from softflow.report.study_tables import (
     best_against_best,
     floor_progress,
@@ -30,7 +30,6 @@ from softflow.report.tables import (
     read_result,
     read_sweep,
 )
-from softflow.studies import stats
 from softflow.studies.study import FLOOR
 from softflow.studies.table1 import TABLE1
 
@@ -90,16 +89,13 @@ def claims(profile: Profile) -> pd.DataFrame:
     models = summary.drop(index=FLOOR, level="model")
     ratio = {f: models.loc[f] / summary.loc[(f, FLOOR)] for f in ("shape", "random")}
     change = " / ".join(
-        _change_text(
-            100 * (summary.loc[(f, d.best_rf)] / summary.loc[(f, d.best_baseline)] - 1),
-            stats.ranking(*stats.row_intervals(d)),
-        )
-        for f, d in differences.iterrows()
+        _change_text(100 * (summary.loc[(d.family, d.a)] / summary.loc[(d.family, d.b)] - 1), isinstance(d.lower, str))
+        for d in differences.itertuples()
     )
     paired = "; ".join(
-        f"{f}: {d.difference_mm:+.2f} mm [{d.low:+.2f}, {d.high:+.2f}] (t: [{d.t_low:+.2f}, {d.t_high:+.2f}]), "
-        f"{d.verdict}"
-        for f, d in differences.iterrows()
+        f"{d.family}: {d.estimate:+.2f} mm [{d.low:+.2f}, {d.high:+.2f}] (t: [{d.t_low:+.2f}, {d.t_high:+.2f}]), "
+        f"{verdict(d)}"
+        for d in differences.itertuples()
     )
     baselines = protocol.reindex(columns=BASELINES)
     spread = protocol.reindex(columns=RF_FAMILY).stack()
@@ -263,10 +259,9 @@ def relative(lower_pct: float) -> str:
     return f"{abs(lower_pct):.0f} % {'lower' if lower_pct >= 0 else 'higher'}"
 
 
-def _change_text(change_pct: float, side: int) -> str:
-    """A change in percent: in words where a ranking is stated (``side`` from stats.ranking),
-    else signed, with 'no ranking'."""
-    return relative(-change_pct) if side else f"{change_pct:+.0f} %, no ranking"
+def _change_text(change_pct: float, ranked: bool) -> str:
+    """A change in percent: in words where a ranking is stated, else signed, with 'no ranking'."""
+    return relative(-change_pct) if ranked else f"{change_pct:+.0f} %, no ranking"
 
 
 def portability_section(profile: Profile) -> list[str]:

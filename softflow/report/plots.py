@@ -585,30 +585,31 @@ def regime_map(table, labels: dict):
     with 95 % intervals, each flow in its colour; below zero the flow wins. Each variant is
     named once, on the x axis, so no two labels can overlap."""
     ambiguity = table["conditional_spread"] / table["spread_floor"]
-    ambiguity = ambiguity.groupby(level="variant", sort=False).first().sort_values(kind="stable")
+    ambiguity = ambiguity.groupby(table["variant"], sort=False).first().sort_values(kind="stable")
     slot = {variant: k for k, variant in enumerate(ambiguity.index)}
-    flows = list(dict.fromkeys(table.index.get_level_values("flow")))
+    flows = list(dict.fromkeys(table["a"]))
     families = {"shape": "o", "random": "s"}
     fig, (ax, ax_step) = plt.subplots(1, 2, figsize=(10, 4.1))
 
     def dodge(k, n):  # side by side within a variant's slot
         return 0.0 if n == 1 else 0.5 * (k / (n - 1) - 0.5)
 
-    for (variant, flow), row in table.iterrows():
-        k, c = flows.index(flow), colour(flow)
-        for j, (family, marker) in enumerate(families.items()):
-            mean = row[f"{family}_mm"]
-            ax.errorbar(
-                slot[variant] + dodge(k * len(families) + j, len(flows) * len(families)),
-                mean,
-                [[mean - row[f"{family}_low"]], [row[f"{family}_high"] - mean]],
-                fmt=marker,
-                color=c,
-                mfc=c if family == "shape" else "white",
-                capsize=3,
-            )
-        step_error = [[row.step_N - row.step_low], [row.step_high - row.step_N]] if np.isfinite(row.step_low) else None
-        ax_step.errorbar(slot[variant] + dodge(k, len(flows)), row.step_N, step_error, fmt="D", color=c, capsize=3)
+    for row in table.itertuples():
+        k, c = flows.index(row.a), colour(row.a)
+        error = [[row.estimate - row.low], [row.high - row.estimate]] if np.isfinite(row.low) else None
+        if row.family == "step":
+            ax_step.errorbar(slot[row.variant] + dodge(k, len(flows)), row.estimate, error, fmt="D", color=c, capsize=3)
+            continue
+        j, marker = list(families).index(row.family), families[row.family]
+        ax.errorbar(
+            slot[row.variant] + dodge(k * len(families) + j, len(flows) * len(families)),
+            row.estimate,
+            error,
+            fmt=marker,
+            color=c,
+            mfc=c if row.family == "shape" else "white",
+            capsize=3,
+        )
     names = [f"{variant} ({level:.1f})" for variant, level in ambiguity.items()]
     for a, title, unit in ((ax, "tracking RMSE", "mm"), (ax_step, "per-step u error", "N")):
         a.axhline(0, color="k", lw=0.8)

@@ -114,20 +114,24 @@ def _per_study_files() -> dict[str, StudyTable]:
         "twin_sensitivity.csv": StudyTable(
             ("closed_loop",), study_tables.gap_sensitivity, writer="06_hardware_replay.ipynb"
         ),
-        "08_differences.csv": StudyTable(("table1",), study_tables.best_against_best),
-        "09_data_size_effects.csv": StudyTable(("data_size",), study_tables.size_effects),
+        "08_differences.csv": StudyTable(("table1",), study_tables.best_against_best, index=False),
+        "09_data_size_effects.csv": StudyTable(("data_size",), study_tables.size_effects, index=False),
         "09_regime_map.csv": StudyTable(
-            ("ambiguity", "two_segment"), lambda a, b: study_tables.regime_map(study_tables.regime_rows(a, b))
+            ("ambiguity", "two_segment"),
+            lambda a, b: study_tables.regime_map(study_tables.regime_rows(a, b)),
+            index=False,
         ),
         "10_table3_extended.csv": StudyTable(("closed_loop",), study_tables.closed_loop_table),
-        "11_fwd_lambda_decision.csv": StudyTable(("fwd_lambda",), lambda rows: study_tables.lambda_decision(rows)[0]),
+        "11_fwd_lambda_decision.csv": StudyTable(
+            ("fwd_lambda",), lambda rows: study_tables.lambda_decision(rows)[0], index=False
+        ),
         "12_table1.csv": StudyTable(("two_segment",), study_tables.two_segment_table),
-        "12_differences.csv": StudyTable(("two_segment",), study_tables.two_segment_differences),
+        "12_differences.csv": StudyTable(("two_segment",), study_tables.two_segment_differences, index=False),
         "12_per_step.csv": StudyTable(("two_segment",), study_tables.two_segment_per_step),
         "12_spread.csv": StudyTable(("two_segment",), study_tables.two_segment_spread),
         "13_table.csv": StudyTable(("recorded",), study_tables.recorded_table),
-        "13_recording_rule.csv": StudyTable(("recorded",), study_tables.recording_rule),
-        "13_model_rule.csv": StudyTable(("recorded",), study_tables.recorded_model_rule),
+        "13_recording_rule.csv": StudyTable(("recorded",), study_tables.recording_rule, index=False),
+        "13_model_rule.csv": StudyTable(("recorded",), study_tables.recorded_model_rule, index=False),
         "13_spread.csv": StudyTable(("recorded",), study_tables.recorded_spread),
         "13_per_step.csv": StudyTable(("recorded",), study_tables.recorded_per_step),
     }

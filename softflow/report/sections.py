@@ -16,6 +16,7 @@ import pandas as pd
 from softflow.models.specs import label
 from softflow.profiles import Profile
 from softflow.report.study_tables import (
+    ROTATED_PATHS,
     best_against_best,
     interval_text,
     lambda_decision,
@@ -29,7 +30,7 @@ from softflow.report.study_tables import (
     with_ci,
 )
 from softflow.report.tables import BASELINES, LABELS, RF_FAMILY, computed_rows, markdown, read_result, read_sweep
-from softflow.studies import loop, one_step, stats, trunk, trunk_v2
+from softflow.studies import loop, one_step, trunk, trunk_v2
 from softflow.studies.catalogue import STUDIES
 from softflow.studies.study import FLOOR
 
@@ -37,6 +38,20 @@ TEMPLATES = Path(__file__).with_name("templates")
 SETTING, FOLDED = "paper", "folded"  # the regime map's variants the ambiguity answer names
 FLOOR_LABEL = "ILC floor (true simulator, an upper bound)"
 OBSERVED = {"tip": "seen at the tip alone", "tip+disk": "seen at the tip and the middle disk"}
+FAMILY_ORDER = {"shape": 0, "random": 1}  # the order the words list families in
+RECORDING_SIDES = ("recordings", "simulator")  # the recording rule's a and b in words
+ROTATED_WORDS = "not ranked: one path in three rotations"
+TRUNK_UNJUDGED = f"no ranking (the judge does not tell the {trunk.GATE} input from the recorded inputs)"
+TRUNK_V2_UNJUDGED = (
+    "not judged (a judge separates no perturbation here, or rates a known-worse input below the recorded)"
+)
+
+
+def trunk_v2_verdict(row) -> str:
+    """The trunk_v2 rule's answer on one comparison (``trunk_v2.flow_rule``'s ``rule_lower``) in words."""
+    if pd.isna(row.resolution_mm):
+        return TRUNK_V2_UNJUDGED
+    return f"{label(row.rule_lower)} lower" if isinstance(row.rule_lower, str) else "not resolved by the judges"
 
 
 @dataclass(frozen=True)
@@ -116,13 +131,32 @@ def filled(markdown_text: str, width: int = 110) -> str:
 
 
 # ---------------------------------------------------------------------------- numbers as the words read them
-def difference(row, prefix: str = "", estimate: str = "difference_mm") -> dict:
-    """A verdict table's comparison as the partials read it: numbers rounded as printed."""
-    return dict(
-        mm=f"{row[estimate]:+.2f}",
-        interval=f"[{row[f'{prefix}low']:+.2f}, {row[f'{prefix}high']:+.2f}]",
-        verdict=row[f"{prefix}verdict"],
-    )
+def verdict(row, sides=None) -> str:
+    """A comparison of a verdict table (``stats.COMPARISON``'s columns) in words, the only place
+    they are made: "<lower side> lower", "... (not after Holm)" where the family-wise view removes
+    that ranking, or "no ranking"; ``sides`` names a and b (default: the models' labels)."""
+    if not isinstance(row.lower, str) and pd.isna(row.lower):
+        return "no ranking"
+    names = dict(zip((row.a, row.b), sides or (label(row.a), label(row.b))))
+    words = f"{names[row.lower]} lower"
+    return words if row.kept_after_holm else f"{words} (not after Holm)"
+
+
+def difference(row, sides=None) -> dict:
+    """A verdict table's comparison as the partials read it: numbers rounded as printed, and its
+    words (``verdict``)."""
+    return dict(mm=f"{row.estimate:+.2f}", interval=f"[{row.low:+.2f}, {row.high:+.2f}]", verdict=verdict(row, sides))
+
+
+def compared_text(table: pd.DataFrame, sides=None) -> list[str]:
+    """ "+d [low, high] (verdict)" per comparison of a verdict table."""
+    return ["{mm} {interval} ({verdict})".format(**difference(row, sides)) for row in table.itertuples()]
+
+
+def with_words(table: pd.DataFrame, sides=None) -> pd.DataFrame:
+    """A verdict table as a section shows it: its judgement's columns in words (``verdict``)."""
+    words = [verdict(row, sides) for row in table.itertuples()]
+    return table.drop(columns=["p", "lower", "kept_after_holm"]).assign(verdict=words)
 
 
 def span(values, form: str = "{:+.2f}", joint: str = " to ") -> str:
@@ -156,18 +190,18 @@ def table1_section(profile: Profile) -> Section:
     ratios = [summaries[f].loc[m, "mean"] / summaries[f].loc[FLOOR, "mean"] for f in summaries for m in models]
     differences = best_against_best(rows)
     change = {
-        f: 100 * (summaries[f].loc[d.best_rf, "mean"] / summaries[f].loc[d.best_baseline, "mean"] - 1)
-        for f, d in differences.iterrows()
+        d.family: 100 * (summaries[d.family].loc[d.a, "mean"] / summaries[d.family].loc[d.b, "mean"] - 1)
+        for d in differences.itertuples()
     }
-    rf_lower = [d.verdict == f"{LABELS[d.best_rf]} lower" for _, d in differences.iterrows()]
+    rf_lower = [d.lower == d.a and d.kept_after_holm for d in differences.itertuples()]
     table = pd.DataFrame({f: interval_text(s) for f, s in summaries.items()})
     table = table.reindex(table_order(table.index)).rename(index={**LABELS, FLOOR: FLOOR_LABEL})
     table.columns = ["shapes", "random references"]
     context = dict(
         reproduces=all(rf_lower) and all(c <= -50 for c in change.values()),
         differences={
-            family: dict(best_rf=LABELS[row.best_rf], best_baseline=LABELS[row.best_baseline], **difference(row))
-            for family, row in differences.iterrows()
+            d.family: dict(best_rf=label(d.a), best_baseline=label(d.b), **difference(d))
+            for d in differences.itertuples()
         },
         above_floor=f"{min(ratios):.0f}-{max(ratios):.0f}",
     )
@@ -190,15 +224,14 @@ def regime_map_rows(profile: Profile) -> pd.DataFrame:
 
 def ambiguity_section(profile: Profile) -> Section:
     regimes = regime_map(regime_map_rows(profile))
-    families = ("shape", "random")
-    sides = [stats.ranking(*stats.row_intervals(row, f"{f}_")) for _, row in regimes.iterrows() for f in families]
-    holm = [row[f"{f}_holm_p"] for _, row in regimes.iterrows() for f in families]
+    tracked = regimes[regimes.family.isin(("shape", "random"))]
+    sides = [-1 if row.lower == row.a else 1 if row.lower == row.b else 0 for row in tracked.itertuples()]
 
     def named(variant: str) -> tuple[str, str]:
-        part = regimes.loc[variant]
-        return span([part[f"{f}_mm"].min() for f in families] + [part[f"{f}_mm"].max() for f in families]), tally(
-            v for f in families for v in part[f"{f}_verdict"]
+        part = tracked[tracked.variant == variant].sort_values(
+            "family", key=lambda f: f.map(FAMILY_ORDER), kind="stable"
         )
+        return span(part.estimate), tally(verdict(row) for row in part.itertuples())
 
     (folded, folded_tally), (setting, setting_tally) = named(FOLDED), named(SETTING)
     context = dict(
@@ -210,35 +243,31 @@ def ambiguity_section(profile: Profile) -> Section:
         flow_lower=sides.count(-1),
         mlp_lower=sides.count(1),
         unranked=sides.count(0),
-        removed_by_holm=sum(side != 0 and not p < 1 - stats.LEVEL for side, p in zip(sides, holm)),
+        removed_by_holm=int((tracked.lower.notna() & ~tracked.kept_after_holm).sum()),
     )
+    shown = tracked.assign(compared=compared_text(tracked), flow=tracked.a.map(label))
+    table = shown.pivot(index=["variant", "flow"], columns="family", values="compared")
+    spread = shown.groupby(["variant", "flow"], sort=False)[["conditional_spread", "spread_floor"]].first()
     table = pd.DataFrame(
         {
             "spread / floor (N)": [
-                f"{a:.3f} / {b:.3f}" for a, b in zip(regimes.conditional_spread, regimes.spread_floor)
+                f"{a:.3f} / {b:.3f}" for a, b in zip(spread.conditional_spread, spread.spread_floor)
             ],
-            **{f"{f} (mm)": _differences(regimes, f"{f}_", f"{f}_mm") for f in families},
+            **{f"{f} (mm)": table.loc[spread.index, f] for f in ("shape", "random")},
         },
-        index=regimes.index,
+        index=spread.index,
     )
-    table = table.reset_index("flow").assign(flow=lambda t: t["flow"].map(LABELS))
-    return Section("ambiguity", "Where a flow beats regression", context, table, figure="09_regime_map.png")
-
-
-def _differences(table: pd.DataFrame, prefix: str = "", estimate: str = "difference_mm") -> list[str]:
-    """ "+d [low, high] (verdict)" per row of a verdict table (without a verdict column: no words)."""
-    if f"{prefix}verdict" not in table:
-        table = table.assign(**{f"{prefix}verdict": ""})
-    return [
-        "{mm} {interval} ({verdict})".format(**difference(row, prefix, estimate)).removesuffix(" ()")
-        for _, row in table.iterrows()
-    ]
+    return Section(
+        "ambiguity", "Where a flow beats regression", context, table.reset_index("flow"), figure="09_regime_map.png"
+    )
 
 
 def data_size_section(profile: Profile) -> Section:
     effects = size_effects(read_sweep(profile, "data_size"))
-    context = dict(comparisons=len(effects), tally=tally(effects.verdict))
-    table = pd.Series(_differences(effects), index=effects.index).unstack("family")[["shape", "random"]]
+    context = dict(comparisons=len(effects), tally=tally(verdict(row) for row in effects.itertuples()))
+    shown = effects.assign(compared=compared_text(effects))
+    table = shown.pivot(index=["episodes", "effect"], columns="family", values="compared")[["shape", "random"]]
+    table = table.reindex(list(dict.fromkeys(zip(effects.episodes, effects.effect))))
     title = "The prior or being generative, by data size"
     return Section("data_size", title, context, table.reset_index("effect"), figure="09_data_size.png")
 
@@ -246,10 +275,13 @@ def data_size_section(profile: Profile) -> Section:
 def fwd_lambda_section(profile: Profile) -> Section:
     decision, chosen = lambda_decision(read_sweep(profile, "fwd_lambda"))
     context = dict(chosen=None if chosen == 1.0 else f"{chosen:g}")
-    table = pd.DataFrame({f"{f} (mm)": _differences(decision, f"{f}_", f"{f}_mm") for f in ("shape", "random")})
-    table = table.set_index(decision.index).assign(
-        **{"better on both": decision.better_on_both.map({True: "yes", False: "no"})}
+    shown = decision.assign(
+        compared=[f"{row.estimate:+.2f} [{row.low:+.2f}, {row.high:+.2f}]" for row in decision.itertuples()],
+        consistency=decision.a,
     )
+    table = shown.pivot(index="consistency", columns="family", values="compared")[["shape", "random"]]
+    better = decision.groupby("a").better_on_both.first().map({True: "yes", False: "no"})
+    table = table.rename(columns=lambda f: f"{f} (mm)").assign(**{"better on both": better})
     return Section("fwd_lambda", "RF-FWD's consistency weight", context, table, figure="11_fwd_lambda.png")
 
 
@@ -271,16 +303,18 @@ def two_segment_section(profile: Profile) -> Section:
         dict(
             words=OBSERVED.get(observation, observation),
             families=[
-                dict(family=family, **difference(row))
-                for (_, family), row in part.iterrows()
-                if family in ("shape", "random")
+                dict(family=row.family, **difference(row))
+                for row in part.itertuples()
+                if row.family in ("shape", "random")
             ],
         )
-        for observation, part in differences.groupby(level="observation", sort=False)
+        for observation, part in differences.groupby("observation", sort=False)
     ]
     context = dict(observations=observations, **progress(profile, "two_segment", rows))
     title = "A two-segment rod: four inputs, one tip"
-    return Section("two_segment", title, context, differences.drop(columns=["t_p"]), figure="12_tracking.png")
+    table = with_words(differences).set_index(["observation", "family"])
+    table.loc[table.index.get_level_values("family") == ROTATED_PATHS, "verdict"] = ROTATED_WORDS
+    return Section("two_segment", title, context, table, figure="12_tracking.png")
 
 
 def recorded_section(profile: Profile) -> Section:
@@ -288,20 +322,21 @@ def recorded_section(profile: Profile) -> Section:
     needed, best = recording_rule(rows), recorded_model_rule(rows)
     context = dict(
         needed_count=len(needed),
-        needed=span(needed.difference_mm) if len(needed) else "",
-        needed_tally=tally(needed.verdict),
+        needed=span(needed.estimate) if len(needed) else "",
+        needed_tally=tally(verdict(row, RECORDING_SIDES) for row in needed.itertuples()),
         best_count=len(best),
-        best=span(best.difference_mm) if len(best) else "",
-        best_tally=tally(best.verdict),
+        best=span(best.estimate) if len(best) else "",
+        best_tally=tally(verdict(row) for row in best.itertuples()),
         friction={
             answer: where
             for answer in ("yes", "no", "unanswered")
-            if (where := sorted({g for (g, _), row in best.iterrows() if row.friction_changes == answer}))
+            if (where := sorted(set(best.gravity[best.friction_changes == answer])))
         },
         **progress(profile, "recorded", rows),
     )
     title = "Learning from recorded runs"
-    return Section("recorded", title, context, needed.drop(columns=["t_p"]), figure="13_recording.png")
+    table = with_words(needed, RECORDING_SIDES).set_index(["gravity", "runs"])
+    return Section("recorded", title, context, table, figure="13_recording.png")
 
 
 def trunk_section(profile: Profile) -> Section:
@@ -309,7 +344,9 @@ def trunk_section(profile: Profile) -> Section:
     rule = trunk.summarise(rows)["flow_rule"] if len(rows) else pd.DataFrame()
     answer = trunk.ANSWERS[trunk.notebook_12_answer(rule)] if len(rule) else ""
     context = dict(answer=answer, **progress(profile, "trunk", rows))
-    table = rule.set_index(["observation", "family"]) if len(rule) else rule
+    table = with_words(rule).set_index(["observation", "family"]) if len(rule) else rule
+    if len(rule):
+        table.loc[~table.pop("judge_passes").to_numpy(bool), "verdict"] = TRUNK_UNJUDGED
     return Section("trunk", "A real robot: the ASL trunk", context, table, figure="14_judged.png")
 
 
@@ -318,7 +355,12 @@ def trunk_v2_section(profile: Profile) -> Section:
     rule = trunk_v2.flow_rule(rows) if len(rows) else pd.DataFrame()
     answer = trunk_v2.ANSWERS[trunk_v2.notebook_12_answer(rule)]
     context = dict(answer=answer, **progress(profile, "trunk_v2", rows))
-    table = rule.set_index(["observation", "family"]) if len(rule) else rule
+    table = rule
+    if len(rule):
+        table = with_words(rule).set_index(["observation", "family", "judge"]).drop(columns="rule_lower")
+        table = table.rename(columns={"verdict": "this judge"}).assign(
+            rule=[trunk_v2_verdict(r) for r in rule.itertuples()]
+        )
     title = "The ASL trunk asked again"
     return Section("trunk_v2", title, context, table, figure="14_v2_resolution.png")
 
@@ -336,7 +378,7 @@ def one_step_section(profile: Profile) -> Section:
     context = dict(
         parity=ratios(tables.get("parity", pd.DataFrame())),
         collapse=ratios(tables.get("collapse", pd.DataFrame())),
-        tip_win=[dict(model=label(row.model), family=row.family, **difference(row)) for _, row in win.iterrows()],
+        tip_win=[dict(model=label(row.a), family=row.family, **difference(row)) for row in win.itertuples()],
         **progress(profile, "one_step", rows),
     )
     table = pd.DataFrame()

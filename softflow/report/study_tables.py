@@ -1,10 +1,11 @@
 """The studies' rows (notebooks 08-11) turned into tables: intervals, differences, verdicts.
 
 A difference gets two intervals, the two-way bootstrap over seeds and references and the paired
-t-interval over references on seed means (``compare``); a verdict in words needs both to
-exclude zero (``stats.ranking``). Each verdict table is one family of comparisons: every one
-also carries its Holm-adjusted p-value over the table, and a ranking Holm removes says so
-(``stats.family_verdicts``)."""
+t-interval over references on seed means (``stats.compared``); a ranking needs both to exclude
+zero (``stats.ranking``). Each verdict table is one family of comparisons in one schema
+(``stats.COMPARISON``, made by ``stats.judged``): every comparison carries its Holm-adjusted
+p-value over the table, the side ranked lower and whether Holm keeps that ranking. No table
+holds words: the results page makes them (``report.sections.verdict``)."""
 
 from __future__ import annotations
 
@@ -14,7 +15,8 @@ import pandas as pd
 from softflow.control.metrics import table_rows
 from softflow.data import OBSERVATIONS
 from softflow.hardware.gap import GAP_TERMS
-from softflow.report.tables import BASELINES, LABELS, RF_FAMILY, TABLE1_MODELS
+from softflow.models.specs import BASELINES, FLOWS
+from softflow.report.tables import TABLE1_MODELS
 from softflow.studies import stats
 from softflow.studies.closed_loop import CAMERA_LATENCY, LOOP_MODES
 from softflow.studies.design import VARIANTS as DESIGN_VARIANTS
@@ -67,51 +69,11 @@ def _seeds_by_references(summary: pd.DataFrame) -> pd.Series:
     return pd.Series([f"{r.seeds:.0f} x {r.references:.0f}" for r in summary.itertuples()], index=summary.index)
 
 
-def compare(rows: pd.DataFrame, model: str, other: str, family: str, value: str = "rmse_mm"):
-    """mean(model) - mean(other) on a family: the two-way bootstrap interval and the paired
-    t-interval over references on seed means."""
-    return stats.difference(rows, model, other, family, value), stats.paired_t(rows, model, other, family, value)
-
-
-def _interval_columns(interval, t, prefix: str = "", estimate: str = "difference_mm") -> dict:
-    """A difference as table columns: the estimate, its bootstrap interval and its t-interval
-    (``prefix`` names a family's columns in a wide table, e.g. shape_low)."""
-    return {
-        estimate: interval.estimate,
-        f"{prefix}low": interval.low,
-        f"{prefix}high": interval.high,
-        f"{prefix}t_low": t.low,
-        f"{prefix}t_high": t.high,
-        f"{prefix}t_p": t.p,
-    }
-
-
-# A verdict table's columns for one comparison (``_interval_columns``, ``stats.family_verdicts``).
-COMPARISON = ("difference_mm", "low", "high", "t_low", "t_high", "t_p", "holm_p", "verdict")
-BEST_AGAINST_BEST = ("family", "best_rf", "best_baseline", *COMPARISON)
-
-
-def _best_names(index, row) -> tuple[str, str]:
-    return LABELS.get(row.best_rf, row.best_rf), LABELS.get(row.best_baseline, row.best_baseline)
-
-
 def best_against_best(rows: pd.DataFrame, value: str = "rmse_mm", families=("shape", "random")) -> pd.DataFrame:
-    """Per family: the best RF variant minus the best baseline (best: lowest mean), with its
-    bootstrap (low, high) and paired t-interval (t_low, t_high); a ranking is stated only where
-    both exclude 0, and the families together are one Holm family. A family without an RF
-    variant or a baseline in the rows (a grid, or a sweep not finished, that lacks one) is left
-    out. (Picking the best of each group from the same rows biases the difference towards 0.)"""
-    out = []
-    for family in families:
-        means = with_ci(rows, value, family)["mean"]
-        rfs, baselines = means.reindex(RF_FAMILY).dropna(), means.reindex(BASELINES).dropna()
-        if rfs.empty or baselines.empty:
-            continue
-        rf, baseline = rfs.idxmin(), baselines.idxmin()
-        interval, t = compare(rows, rf, baseline, family, value)
-        out.append(dict(family=family, best_rf=rf, best_baseline=baseline, **_interval_columns(interval, t)))
-    table = pd.DataFrame(out, columns=BEST_AGAINST_BEST).set_index("family")
-    return stats.family_verdicts(table, _best_names)
+    """Per family: the best flow minus the best baseline (``stats.best_against_best``), the
+    families one Holm family; a family without a flow or a baseline in the rows (a grid, or a
+    sweep not finished, that lacks one) is left out."""
+    return stats.judged(stats.best_against_best(rows, (FLOWS, BASELINES), families, value))
 
 
 def table1_summaries(rows: pd.DataFrame, families=("shape", "random")) -> pd.DataFrame:
@@ -188,9 +150,6 @@ def closed_loop_table(rows: pd.DataFrame) -> pd.DataFrame:
 
 
 # ---------------------------------------------------------------------------- where a flow wins (notebook 09)
-FLOWS = ("rf", "rf-fwd")  # against the MLP, fixed before the ambiguity study ran
-
-
 def data_size_table(rows: pd.DataFrame, value: str = "rmse_mm") -> pd.DataFrame:
     """Mean of ``value`` with its interval per model, training episodes and reference family."""
     return stats.summarise(rows, value, by=("model", "episodes", "family"))
@@ -231,39 +190,26 @@ def regime_rows(ambiguity_rows: pd.DataFrame, two_segment_rows: pd.DataFrame) ->
 
 def regime_map(rows: pd.DataFrame) -> pd.DataFrame:
     """Per ambiguity variant: the conditional spread of u (and the estimator's floor) and each
-    flow minus the MLP, z = 0 plans: tracking RMSE (mm) per family, paired over references
-    (bootstrap and t-interval; every tracking comparison of the map is one Holm family), and the
-    per-step u error (N), over seeds; a verdict only where both intervals exclude 0 (so none per
-    step: one number per model leaves no references to pair over)."""
+    flow minus the MLP of z = 0 plans (``stats.judged``, one row per comparison): tracking RMSE
+    (mm) per reference family, paired over references, every one of the map's a Holm family; and
+    the per-step u error (N, family "step"), over seeds alone, so no t-interval and no ranking
+    (one number per model leaves no references to pair over; with one seed, no interval)."""
     out = []
     plans = rows[rows["plan"] == "zero"]
     for variant, part in plans.groupby("variant", sort=False):
-        spread = part.iloc[0]
+        spread = dict(
+            variant=variant,
+            conditional_spread=part.iloc[0].conditional_spread,
+            spread_floor=part.iloc[0].conditional_spread_floor,
+        )
+        steps = part.drop_duplicates(subset=["model", "seed"]).assign(reference="per step", family="step")
+        several = steps.groupby("model").seed.nunique().min() > 1
         for flow in (f for f in FLOWS if f in set(part["model"])):
-            row = dict(
-                variant=variant,
-                flow=flow,
-                conditional_spread=spread.conditional_spread,
-                spread_floor=spread.conditional_spread_floor,
-            )
-            for family in ("shape", "random"):
-                interval, t = compare(part, flow, "mlp", family)
-                row.update(_interval_columns(interval, t, f"{family}_", f"{family}_mm"))
-            # one number per trained model: the interval is over seeds alone, so it needs several
-            steps = part.drop_duplicates(subset=["model", "seed"]).assign(reference="per step", family="step")
-            interval, t = compare(steps, flow, "mlp", "step", "u_rmse_test")
-            several = steps.groupby("model").seed.nunique().min() > 1
-            row.update(
-                step_N=interval.estimate,
-                step_low=interval.low if several else np.nan,
-                step_high=interval.high if several else np.nan,
-                step_verdict=stats.verdict(stats.ranking(interval, t), LABELS[flow], "MLP")
-                if several
-                else "one seed: no interval",
-            )
-            out.append(row)
-    table = pd.DataFrame(out).set_index(["variant", "flow"])
-    return stats.family_verdicts(table, lambda index, row: (LABELS[index[1]], "MLP"), ("shape_", "random_"))
+            out += [spread | stats.compared(part, flow, "mlp", family) for family in ("shape", "random")]
+            step = stats.compared(steps, flow, "mlp", "step", "u_rmse_test")
+            out.append(spread | step | ({} if several else dict(low=np.nan, high=np.nan)))
+    keys = ("variant", "conditional_spread", "spread_floor")
+    return stats.judged(out, keys, in_family=[row["family"] != "step" for row in out])
 
 
 # What data_size separates (fixed with the study): effect -> (model, the model it is compared with).
@@ -278,42 +224,38 @@ SIZE_EFFECTS = {
 def size_effects(rows: pd.DataFrame) -> pd.DataFrame:
     """Per training-set size and reference family: the physics prior's effect (each model with
     the prior minus the same model without) and being generative's (each flow minus the
-    regression with the same prior), tracking RMSE in mm paired over references (bootstrap and
-    t-interval; one Holm family); the effects whose models the grid lacks are left out."""
+    regression with the same prior), tracking RMSE in mm paired over references (``stats.judged``,
+    one Holm family); the effects whose models the grid lacks are left out."""
     out = []
     for episodes, part in rows.groupby("episodes"):
         for effect, (model, other) in SIZE_EFFECTS.items():
             if not {model, other} <= set(part["model"]):
                 continue  # a grid without one of them (the ci profile's)
-            for family in ("shape", "random"):
-                interval, t = compare(part, model, other, family)
-                out.append(dict(episodes=episodes, effect=effect, family=family, **_interval_columns(interval, t)))
-    if not out:
-        return pd.DataFrame(columns=["episodes", "effect", "family"]).set_index(["episodes", "effect", "family"])
-    table = pd.DataFrame(out).set_index(["episodes", "effect", "family"])
-    return stats.family_verdicts(table, lambda index, row: tuple(LABELS[m] for m in SIZE_EFFECTS[index[1]]))
+            out += [
+                dict(episodes=episodes, effect=effect, **stats.compared(part, model, other, family))
+                for family in ("shape", "random")
+            ]
+    return stats.judged(out, ("episodes", "effect"))
 
 
 def lambda_decision(rows: pd.DataFrame, default: float = 1.0) -> tuple[pd.DataFrame, float]:
     """RF-FWD's consistency weight, the rule fixed before fwd_lambda ran: each weight minus the
-    default (tracking RMSE, mm, paired over references) per family; the default changes only to
-    a weight whose intervals (bootstrap and t, as for every verdict) exclude zero in its favour
-    on both families (of several, the one lowest on the random references). Returns the table
-    (``chosen`` marks the new default, if any) and the weight chosen."""
+    default (tracking RMSE, mm, paired over references) per family (``stats.judged``, one Holm
+    family, reported beside the rule, which was fixed without it); the default changes only to
+    a weight ranked lower than it (both intervals) on both families (of several, the one lowest
+    on the random references). Returns the table (``chosen`` marks the new default's rows, if
+    any) and the weight chosen."""
     weights = rows.assign(model=rows["consistency"].astype(float))
-    out = []
-    for weight in sorted(set(weights["model"]) - {default}):
-        row, sides = dict(consistency=weight), []
-        for family in ("shape", "random"):
-            interval, t = compare(weights, weight, default, family)
-            sides.append(stats.ranking(interval, t))
-            row.update(_interval_columns(interval, t, f"{family}_", f"{family}_mm"))
-        row["better_on_both"] = sides == [-1, -1]
-        out.append(row)
-    table = pd.DataFrame(out).set_index("consistency")
-    better = table[table["better_on_both"]]
-    chosen = float(better["random_mm"].idxmin()) if len(better) else default
-    return table.assign(chosen=table.index == chosen), chosen
+    out = [
+        stats.compared(weights, weight, default, family)
+        for weight in sorted(set(weights["model"]) - {default})
+        for family in ("shape", "random")
+    ]
+    table = stats.judged(out)
+    better = [weight for weight, row in table.groupby("a") if (row.lower == weight).all() and len(row) == 2]
+    random = table[table.family == "random"].set_index("a").estimate
+    chosen = float(random[better].idxmin()) if better else default
+    return table.assign(better_on_both=table.a.isin(better), chosen=table.a == chosen), chosen
 
 
 def floor_progress(rows: pd.DataFrame, iterations: int) -> tuple[int, int]:
@@ -376,30 +318,24 @@ def two_segment_table(rows: pd.DataFrame) -> pd.DataFrame:
 
 
 ROTATED_PATHS = "path3d"  # the study's three 3-D paths: one path in three rotations (docs/assumptions.md)
-ROTATED_WORDS = "not ranked: one path in three rotations"
 
 
 def two_segment_differences(rows: pd.DataFrame) -> pd.DataFrame:
-    """The study's decision rule per observation and family: best RF variant minus best baseline
-    in tracking RMSE of the z = 0 plans (``best_against_best``), a verdict only where both
-    intervals exclude zero, Holm over every observation and family; an observation or family
-    without both groups is left out. The 3-D paths get no verdict and stay out of the Holm
-    family: their three references are one path in three rotations, so their t-interval's two
-    degrees of freedom count one path three times."""
-    zero, parts = _zero_plans(rows), {}
-    for observation, part in zero.groupby("observation") if len(zero) else ():
-        table = best_against_best(part, families=_families(part))
-        if observation != FLOOR_OBSERVATION and len(table):
-            parts[observation] = table
-    if not parts:
-        empty = pd.DataFrame(columns=["observation", *BEST_AGAINST_BEST])
-        return empty.set_index(["observation", "family"])
-    table = pd.concat(parts, names=["observation", "family"]).sort_index(
-        level="observation", key=lambda level: level.map(_RANKS["observation"]), sort_remaining=False
+    """The study's decision rule per observation and family: the best flow minus the best
+    baseline in tracking RMSE of the z = 0 plans (``stats.best_against_best``), ranked only where
+    both intervals exclude zero, Holm over every observation and family; an observation or
+    family without both groups is left out. The 3-D paths are not ranked and stay out of the
+    Holm family: their three references are one path in three rotations, so their t-interval's
+    two degrees of freedom count one path three times."""
+    zero = _zero_plans(rows)
+    observations = (
+        sorted(set(zero["observation"]) - {FLOOR_OBSERVATION}, key=_RANKS["observation"].get) if len(zero) else []
     )
-    rotated = table.index.get_level_values("family") == ROTATED_PATHS
-    ranked = stats.family_verdicts(table[~rotated], _best_names)
-    return pd.concat([ranked, table[rotated].assign(verdict=ROTATED_WORDS)]).reindex(table.index)
+    out = []
+    for observation in observations:
+        part = zero[zero["observation"] == observation]
+        out += stats.best_against_best(part, (FLOWS, BASELINES), _families(part), observation=observation)
+    return stats.judged(out, ("observation",), in_family=[row["family"] != ROTATED_PATHS for row in out])
 
 
 def two_segment_per_step(rows: pd.DataFrame) -> pd.DataFrame:
@@ -435,14 +371,14 @@ def _spread_table(rows: pd.DataFrame, by: list) -> pd.DataFrame:
     return table.assign(**{"spread / floor": table["conditional_spread"] / table["conditional_spread_floor"]})
 
 
-# Where each study's verdicts sit in its table: label -> (study, column prefixes of the
-# comparisons, each with <prefix>low, <prefix>high and <prefix>t_low, <prefix>t_high).
+# Which comparisons of each study's verdict table each count is over: label -> (study, its
+# reference families; None: all).
 VERDICTS = {
-    "best RF variant - best baseline (table1)": ("table1", ("",)),
-    "flow - MLP, tracking (ambiguity)": ("ambiguity", ("shape_", "random_")),
-    "flow - MLP, per-step u error (ambiguity)": ("ambiguity", ("step_",)),
-    "prior and generative effects (data_size)": ("data_size", ("",)),
-    "each lambda - lambda = 1 (fwd_lambda)": ("fwd_lambda", ("shape_", "random_")),
+    "best RF variant - best baseline (table1)": ("table1", None),
+    "flow - MLP, tracking (ambiguity)": ("ambiguity", ("shape", "random")),
+    "flow - MLP, per-step u error (ambiguity)": ("ambiguity", ("step",)),
+    "prior and generative effects (data_size)": ("data_size", None),
+    "each lambda - lambda = 1 (fwd_lambda)": ("fwd_lambda", None),
 }
 
 
@@ -453,14 +389,15 @@ def verdict_counts(tables: dict) -> pd.DataFrame:
     of them together; a comparison without a t-interval (none per step) is ranked by the
     bootstrap alone only."""
     out = {}
-    for label, (study, prefixes) in VERDICTS.items():
+    for label, (study, families) in VERDICTS.items():
         if study not in tables:
             continue
+        table = tables[study]
+        table = table if families is None else table[table["family"].isin(families)]
         counts = np.zeros(3, int)
-        for prefix in prefixes:
-            for _, row in tables[study].iterrows():
-                bootstrap, t = stats.row_intervals(row, prefix)
-                counts += [1, stats.ranking(bootstrap) != 0, stats.ranking(bootstrap, t) != 0]
+        for row in table.itertuples():
+            bootstrap, t = stats.Interval(np.nan, row.low, row.high), stats.Interval(np.nan, row.t_low, row.t_high)
+            counts += [1, stats.ranking(bootstrap) != 0, stats.ranking(bootstrap, t) != 0]
         out[label] = dict(zip(("comparisons", "bootstrap alone", "bootstrap and t"), counts))
     table = pd.DataFrame.from_dict(out, orient="index").rename_axis("verdicts")
     return pd.concat([table, table.sum().rename("all").to_frame().T.rename_axis("verdicts")])
@@ -528,64 +465,48 @@ def recorded_table(rows: pd.DataFrame) -> pd.DataFrame:
     return pd.concat(parts, names=index)
 
 
-RECORDING_RULE = ("gravity", "runs", "best_recorded", "best_simulator", *COMPARISON)
-
-
 def recording_rule(rows: pd.DataFrame, family: str = "shape", value: str = "rmse_mm") -> pd.DataFrame:
     """The recorded study's "how much recording" rule, per configuration and recording size under
-    friction: the better of MLP and RF trained on that many runs minus the better of the
-    simulator-trained RF-FWD open and open-calibrated (open loop against open loop), with its
-    bootstrap and paired t-intervals; "recordings lower" or "simulator lower" only where both
-    exclude 0 (one Holm family over sizes and configurations). A size or a configuration
-    without both sides in the rows is left out."""
+    friction: the better of MLP and RF trained on that many runs (a) minus the better of the
+    simulator-trained RF-FWD open and open-calibrated (b), open loop against open loop, each
+    named "model | conditions" (``stats.judged``: ranked only where both intervals exclude 0, one
+    Holm family over sizes and configurations). A size or a configuration without both sides in
+    the rows is left out."""
     part = rows[(rows["gap"] == "friction") & (rows["family"] == family)] if len(rows) else rows
     out = []
     if len(part):
         part = part.assign(learner=part["model"], model=part["model"] + " | " + recorded_conditions(part))
     for gravity, config in part.groupby("gravity", sort=False) if len(part) else ():
-        means = stats.summarise(config, value, by=("model",)).set_index("model")["mean"]
         simulator = config[(config["trained_on"] == "simulator") & config["mode"].isin(("open", "open-calibrated"))]
         recorded = config[(config["trained_on"] == "recordings") & config["learner"].isin(("mlp", "rf"))]
         if simulator.empty:
             continue
-        best_simulator = means[simulator["model"].unique()].idxmin()
         for runs, sized in recorded.groupby("runs"):
-            best = means[sized["model"].unique()].idxmin()
-            interval, t = compare(config, best, best_simulator, family, value)
-            out.append(
-                dict(
-                    gravity=gravity,
-                    runs=int(runs),
-                    best_recorded=best,
-                    best_simulator=best_simulator,
-                    **_interval_columns(interval, t),
-                )
-            )
-    table = pd.DataFrame(out, columns=RECORDING_RULE).set_index(["gravity", "runs"])
-    return stats.family_verdicts(table, lambda index, row: ("recordings", "simulator"))
+            groups = (sized["model"].unique(), simulator["model"].unique())
+            out += stats.best_against_best(config, groups, (family,), value, gravity=gravity, runs=int(runs))
+    return stats.judged(out, ("gravity", "runs"))
 
 
 def recorded_model_rule(rows: pd.DataFrame, family: str = "shape", value: str = "rmse_mm") -> pd.DataFrame:
     """The recorded study's "which model is best" rule, per configuration and gap among the models
-    of recordings on the most runs: the best RF variant minus the best baseline (under friction,
-    all five models; under the typical gap, RF minus MLP), as ``best_against_best``, Holm over the
-    whole table. Column ``friction_changes``: "yes" where the two gaps' verdicts are rankings of
-    opposite sign, "no" where they are the same ranking, "unanswered" where either gap ranks
-    nothing (so a missing ranking is never read as "friction changes nothing")."""
+    of recordings on the most runs: the best flow minus the best baseline (under friction, all
+    five models; under the typical gap, RF minus MLP), as ``best_against_best``, Holm over the
+    whole table. Column ``friction_changes``: "yes" where the two gaps rank opposite sides (a flow
+    lower under one, a baseline under the other), "no" where they rank the same side, "unanswered"
+    where either gap ranks nothing (so a missing ranking is never read as "friction changes
+    nothing")."""
     learned = rows[rows["trained_on"] == "recordings"] if len(rows) else rows
-    out = {}
+    out = []
     for (gravity, gap), part in learned.groupby(["gravity", "gap"], sort=False) if len(learned) else ():
         most = part[part["runs"] == part["runs"].max()]
-        table = best_against_best(most, value, families=(family,))
-        if len(table):
-            out[(gravity, gap)] = table.iloc[0].rename(None)
-    table = pd.DataFrame(list(out.values()), index=pd.MultiIndex.from_tuples(list(out), names=["gravity", "gap"]))
-    if table.empty:
-        return pd.DataFrame(columns=[*BEST_AGAINST_BEST, "friction_changes"])
-    table = stats.family_verdicts(table, _best_names)
-    sides = {key: stats.ranking(*stats.row_intervals(row)) for key, row in table.iterrows()}
+        out += stats.best_against_best(most, (FLOWS, BASELINES), (family,), value, gravity=gravity, gap=gap)
+    table = stats.judged(out, ("gravity", "gap"))
+    sides = {
+        (row.gravity, row.gap): -1 if row.lower == row.a else 1 if row.lower == row.b else 0
+        for row in table.itertuples()
+    }
     changes = {}
-    for gravity in table.index.get_level_values("gravity"):
+    for gravity in table.gravity:
         both = sides.get((gravity, "friction"), 0) * sides.get((gravity, "typical"), 0)
         changes[gravity] = "yes" if both < 0 else "no" if both > 0 else "unanswered"
-    return table.assign(friction_changes=[changes[gravity] for gravity, _ in table.index])
+    return table.assign(friction_changes=[changes[gravity] for gravity in table.gravity])

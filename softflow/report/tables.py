@@ -25,7 +25,8 @@ COLUMNS = {
     "input_energy_random": "input_energy",
 }  # metrics.table_rows -> the paper's table headings
 TABLE1_MODELS = ["mlp", "lstm", "transformer", "rf", "rf-physical", "rf-fwd"]
-BASELINES, RF_FAMILY = TABLE1_MODELS[:3], TABLE1_MODELS[3:]
+BASELINES = [name for name in TABLE1_MODELS if MODEL_SPECS[name].group == "regression"]  # Table I's groups
+RF_FAMILY = [name for name in TABLE1_MODELS if MODEL_SPECS[name].group == "flow"]
 
 LABELS = {name: spec.label for name, spec in MODEL_SPECS.items() if spec.label} | {FLOOR: "ILC floor (true simulator)"}
 # The paper's numbers (Tables I-IV of the paper in ../shared/paper).

@@ -31,7 +31,6 @@ import pandas as pd
 
 from softflow import data, training
 from softflow.control.planning import Controller, evaluate
-from softflow.models.specs import label
 from softflow.profiles import FIXED_BUDGET, get_profile
 from softflow.rod.dynamics import Simulator
 from softflow.rod.robots import SIM_ROBOT, TWO_SEGMENT_ROD
@@ -106,9 +105,9 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
 def summarise(rows: pd.DataFrame) -> dict[str, pd.DataFrame]:
     """The study's tables from its rows (columns rod, model, seed, plan_steps, reference, family,
     rmse_mm): "rmse", each plan's mean tracking RMSE (``model@steps``; the MLP's @0) with its
-    bootstrap interval over seeds and references; "parity" (rule 1), "tip_win" (rule 2, one
-    Holm family) and "collapse" (rule 3), one row per comparison with its interval(s) and its
-    words."""
+    bootstrap interval over seeds and references; "parity" (rule 1) and "collapse" (rule 3), one row per ratio
+    with its interval and whether it lies within the band; "tip_win" (rule 2), a verdict table
+    (``stats.judged``, one Holm family)."""
     plans = rows.assign(model=rows["model"] + "@" + rows["plan_steps"].astype(str))
     parity, win, collapse = [], [], []
     for (rod, family), part in plans.groupby(["rod", "family"], sort=False):
@@ -129,15 +128,8 @@ def summarise(rows: pd.DataFrame) -> dict[str, pd.DataFrame]:
         if rod == TWO_SEGMENT_TIP:
             for one_step in PARENTS:
                 if {f"{one_step}@1", "mlp@0"} <= present:
-                    boot = stats.bootstrap(*grids(f"{one_step}@1", "mlp@0"))
-                    t = stats.paired_t(part, f"{one_step}@1", "mlp@0")
-                    win.append(
-                        dict(rod=rod, family=family, model=f"{one_step}@1", other="mlp@0", difference_mm=boot.estimate)
-                        | dict(low=boot.low, high=boot.high, t_low=t.low, t_high=t.high, t_p=t.p)
-                    )
-    win = pd.DataFrame(win)
-    if len(win):
-        win = stats.family_verdicts(win, lambda index, row: (label(row["model"]), label(row["other"])))
+                    win.append(dict(rod=rod, **stats.compared(part, f"{one_step}@1", "mlp@0", family)))
+    win = stats.judged(win, ("rod",))
     rmse = stats.summarise(plans, "rmse_mm", by=("rod", "family", "model"))
     return dict(rmse=rmse, parity=pd.DataFrame(parity), tip_win=win, collapse=pd.DataFrame(collapse))
 

@@ -12,10 +12,10 @@ paired samples together); the t-test is scipy's, Holm's adjustment statsmodels'.
 The paired t-interval is a second, stricter check on a difference: it averages each model's
 seeds per reference and treats the references alone as the sample, so a difference that rests
 on a few references far from the rest stays unranked even where the bootstrap, which also sees
-the seeds, calls it. A ranking is stated in words only where both exclude zero (``ranking``),
-and ``verdict`` is the one place that says it. A study makes many comparisons at 95 % each: its
-verdict table is one family, and a ranking whose Holm-adjusted t-test p-value (``holm``) is not
-below 5 % is marked as one the family-wise view removes.
+the seeds, calls it. A ranking is stated only where both exclude zero (``ranking``). A study
+makes many comparisons at 95 % each: its verdict table (``judged``, one schema for every study)
+is one family, and a ranking whose Holm-adjusted t-test p-value (``holm``) is not below 5 % is
+marked as one the family-wise view removes. Words are made from these tables by the report.
 """
 
 from __future__ import annotations
@@ -202,40 +202,72 @@ def holm(p_values) -> np.ndarray:
     return adjusted
 
 
-def verdict(side: int, lower: str, higher: str, holm_p: float | None = None, level: float = LEVEL) -> str:
-    """A comparison in words, the only place they are made: "<lower> lower" where ``side`` (from
-    ``ranking``) is -1, "<higher> lower" where it is +1, else "no ranking"; a ranking whose
-    family's Holm-adjusted p-value (``holm``; None: not judged as a family) is not below
-    1 - ``level`` says that Holm removes it."""
-    if side not in (-1, 0, 1):
-        raise ValueError(f"side must be -1, 0 or 1 (stats.ranking); got {side!r}")
-    if not side:
-        return "no ranking"
-    words = f"{lower if side < 0 else higher} lower"
-    return words if holm_p is None or holm_p < 1 - level else f"{words} (not after Holm)"
+# One comparison of a verdict table, every study's: the reference family, the two sides (the
+# difference is a - b), the difference's bootstrap interval and paired t-interval with the t-test's
+# two-sided p, then the judgement over the table (``judged``): the Holm-adjusted p, the side both
+# intervals put lower (NaN: neither) and whether that ranking is kept after Holm. Words are made
+# from these columns when a page renders them (``report.sections.verdict``), never stored.
+COMPARED = ("family", "a", "b", "estimate", "low", "high", "t_low", "t_high", "p")
+JUDGEMENT = ("holm_p", "lower", "kept_after_holm")
+COMPARISON = (*COMPARED, *JUDGEMENT)
 
 
-def row_intervals(row: pd.Series, prefix: str = "") -> tuple[Interval, Interval]:
-    """One comparison of a verdict table's row: its bootstrap interval (<prefix>low, high) and
-    t-interval (<prefix>t_low, t_high; NaN where the row has none), for ``ranking``."""
-    return tuple(
-        Interval(np.nan, row.get(f"{prefix}{kind}low", np.nan), row.get(f"{prefix}{kind}high", np.nan))
-        for kind in ("", "t_")
+def compared(rows: pd.DataFrame, a, b, family: str, value: str = "rmse_mm") -> dict:
+    """mean(a) - mean(b) of ``value`` on a reference family as ``COMPARED``'s columns: the two-way
+    bootstrap interval (``difference``) and the paired t-interval over references (``paired_t``)."""
+    interval, t = difference(rows, a, b, family, value), paired_t(rows, a, b, family, value)
+    return dict(
+        family=family,
+        a=a,
+        b=b,
+        estimate=interval.estimate,
+        low=interval.low,
+        high=interval.high,
+        t_low=t.low,
+        t_high=t.high,
+        p=t.p,
     )
 
 
-def family_verdicts(table: pd.DataFrame, names, prefixes=("",)) -> pd.DataFrame:
-    """``table`` (one study's verdict table, whose comparisons form one family) with each
-    comparison's Holm-adjusted t-test p-value over the whole table (<prefix>holm_p) and its
-    verdict in words (<prefix>verdict, ``verdict``); ``names(index, row)`` gives the names
-    of the two sides, (the first of the difference, the second)."""
-    keys = [(index, prefix) for index in table.index for prefix in prefixes]
-    adjusted = dict(zip(keys, holm([table.at[index, f"{prefix}t_p"] for index, prefix in keys])))
-    out = table.copy()
-    for prefix in prefixes:
-        out[f"{prefix}holm_p"] = [adjusted[(index, prefix)] for index in table.index]
-        out[f"{prefix}verdict"] = [
-            verdict(ranking(*row_intervals(row, prefix)), *names(index, row), row[f"{prefix}holm_p"])
-            for index, row in out.iterrows()
-        ]
+def judged(comparisons, keys=(), in_family=None, level: float = LEVEL) -> pd.DataFrame:
+    """A study's comparisons (dicts or a frame with ``keys`` and ``COMPARED``'s columns) as one
+    verdict table: ``keys`` then ``COMPARISON``'s columns. The comparisons ``in_family`` (a boolean
+    per row; all by default) form one Holm family over their t-tests' p (``holm``); each of them
+    is ranked where both intervals exclude zero (``ranking``): ``lower`` names that side, and
+    ``kept_after_holm`` says whether its Holm-adjusted p is below 1 - ``level``. A comparison out
+    of the family gets neither."""
+    table = pd.DataFrame(comparisons, columns=[*keys, *COMPARED]).reset_index(drop=True)
+    member = np.ones(len(table), bool) if in_family is None else np.asarray(in_family, bool)
+    if member.shape != (len(table),):
+        raise ValueError(f"in_family must be one boolean per comparison ({len(table)}); got shape {member.shape}")
+    table["holm_p"] = np.nan
+    if member.any():
+        table.loc[member, "holm_p"] = holm(table.loc[member, "p"].to_numpy(float))
+    sides = [
+        ranking(Interval(np.nan, row.low, row.high), Interval(np.nan, row.t_low, row.t_high)) if inside else 0
+        for inside, row in zip(member, table.itertuples())
+    ]
+    table["lower"] = [
+        row.a if side < 0 else row.b if side > 0 else None for side, row in zip(sides, table.itertuples())
+    ]
+    table["kept_after_holm"] = [bool(side) and p < 1 - level for side, p in zip(sides, table.holm_p)]
+    return table
+
+
+def best_against_best(
+    rows: pd.DataFrame, groups, families=("shape", "random"), value: str = "rmse_mm", by: str | None = None, **keys
+) -> list[dict]:
+    """Per reference family: the best of the first group minus the best of the second (best: the
+    lowest mean of ``by``, by default ``value``, on that family among the models the rows hold),
+    ``compared`` on ``value``, with ``keys`` before it; a family where either group has no model
+    in the rows is left out. (Picking the best of each group from the same rows biases the
+    difference towards 0.)"""
+    out = []
+    for family in families:
+        part = rows[rows["family"] == family]
+        means = part.groupby("model", sort=False)[by or value].mean()
+        best = [means.reindex(list(group)).dropna() for group in groups]
+        if any(side.empty for side in best):
+            continue
+        out.append(dict(keys, **compared(part, best[0].idxmin(), best[1].idxmin(), family, value)))
     return out

@@ -39,7 +39,7 @@ import torch
 from softflow import data, training
 from softflow.control.planning import Controller, recorded_range
 from softflow.data import recordings
-from softflow.models.specs import label
+from softflow.models.specs import BASELINES, FLOWS
 from softflow.profiles import FIXED_BUDGET, TrainConfig
 from softflow.store import REPO, cached_arrays
 from softflow.studies import ambiguity, stats
@@ -56,7 +56,7 @@ EPISODE_STEPS = 200  # 2 s
 VALIDATION = 0.15  # the last share of the training run's episodes
 WINDOW_EVERY = 5.0  # s between the starts of the judge's windows
 JUDGE = "forward"
-BASELINES, FLOWS = ("mlp", "lstm", "transformer"), ("rf", "rf-fwd")
+PLANNERS = ("mlp", "lstm", "transformer", "rf", "rf-fwd")  # the models the grid trains (their groups: models.specs)
 NAIVE = ("recorded", "training-mean", "persistence")  # planners that learn nothing: the judge's checks
 # The judge is trusted on a family where it tells the training mean from the recorded inputs.
 # Persistence is 0.05-0.5 degrees RMS from them per step (the inputs are smooth at 100 Hz): no
@@ -85,7 +85,7 @@ TRUNK_GRID = {
         seconds=30.0,  # of each run
     ),
     "paper": TrunkGrid(
-        models=(*BASELINES, *FLOWS),
+        models=PLANNERS,
         seeds=(0, 1, 2),
         observations=("tip", "disks"),
         windows=(0.5, 1.0),
@@ -349,69 +349,46 @@ def run_facts(names=(TRAINING_RUN, *HELD_OUT), delays_of=(TRAINING_RUN,)) -> pd.
 
 
 # ---------------------------------------------------------------------------- the study's tables
-def _compare(rows: pd.DataFrame, model: str, other: str, family: str) -> dict:
-    """mean(model) - mean(other) of the judged tip error on a family: the bootstrap interval over
-    seeds and windows, the paired t-interval over windows (and its p-value), and the side both
-    agree on (or 0)."""
-    interval = stats.difference(rows, model, other, family, "tip_mm")
-    t = stats.paired_t(rows, model, other, family, "tip_mm")
-    return dict(
-        difference_mm=interval.estimate,
-        low=interval.low,
-        high=interval.high,
-        t_low=t.low,
-        t_high=t.high,
-        t_p=t.p,
-        side=stats.ranking(interval, t),
-    )
-
-
 def judged_table(rows: pd.DataFrame) -> pd.DataFrame:
     """Mean judged tip error (mm) [bootstrap interval] per observation, planner and family."""
     return stats.summarise(rows, "tip_mm", by=("observation", "model", "family"))
 
 
 def judge_check(rows: pd.DataFrame) -> pd.DataFrame:
-    """Per family: can the judge tell each naive planner from the recorded inputs (its floor)? Only
-    where it tells the GATE planner apart (higher by the rule) is anything ranked on the judge."""
+    """Per family: can the judge tell each naive planner from the recorded inputs (its floor)? Each
+    planner minus the recorded inputs in judged tip error (``stats.compared``); only where both
+    intervals put the GATE planner higher (``tells_apart``) is anything ranked on the judge."""
     naive = rows[rows.model.isin(NAIVE)]
-    out = []
-    for family in dict.fromkeys(naive.family):
-        compared = {name: _compare(naive, name, "recorded", family) for name in NAIVE[1:]}
-        out += [dict(family=family, planner=name, **c) for name, c in compared.items()]
-    table = pd.DataFrame(out)
-    if len(table):
-        table["tells_apart"] = table.side > 0
-    return table
+    table = pd.DataFrame(
+        [
+            stats.compared(naive, name, "recorded", family, "tip_mm")
+            for family in dict.fromkeys(naive.family)
+            for name in NAIVE[1:]
+        ],
+        columns=stats.COMPARED,
+    )
+    higher = [
+        stats.ranking(stats.Interval(np.nan, row.low, row.high), stats.Interval(np.nan, row.t_low, row.t_high)) > 0
+        for row in table.itertuples()
+    ]
+    return table.assign(tells_apart=higher)
 
 
 def flow_rule(rows: pd.DataFrame) -> pd.DataFrame:
     """The study's question per observation and family: the best flow minus the best baseline
-    (best: lowest mean judged error, picked on these rows), ranked only where both intervals
-    exclude zero and the judge tells the training mean from its floor on that family; the
-    families the judge passes are one Holm family."""
+    (best: lowest mean judged error, picked on these rows, ``stats.best_against_best``), ranked
+    only where both intervals exclude zero and the judge tells the training mean from its floor
+    on that family (``judge_passes``); the families the judge passes are one Holm family."""
     judged = judge_check(rows)
-    trusted = set(judged.family[(judged.planner == GATE) & judged.tells_apart]) if len(judged) else set()
+    passed = judged.family[(judged.a == GATE) & judged.tells_apart]
+    planners = rows[~rows.model.isin(NAIVE)]
     out = []
-    for (observation, family), part in rows[~rows.model.isin(NAIVE)].groupby(["observation", "family"], sort=False):
-        means = part.groupby("model").tip_mm.mean()
-        flows, baselines = means.reindex(FLOWS).dropna(), means.reindex(BASELINES).dropna()
-        if flows.empty or baselines.empty:
-            continue
-        flow, baseline = flows.idxmin(), baselines.idxmin()
-        compared = _compare(part, flow, baseline, family)
-        compared.pop("side")
-        out.append(dict(observation=observation, family=family, best_flow=flow, best_baseline=baseline, **compared))
-    table = pd.DataFrame(out)
-    if table.empty:
-        return table
-    judged_by = table.family.isin(trusted)
-    names = lambda index, row: (label(row.best_flow), label(row.best_baseline))  # noqa: E731
-    ranked = stats.family_verdicts(table[judged_by], names) if judged_by.any() else table[judged_by]
-    untrusted = table[~judged_by].assign(
-        holm_p=np.nan, verdict=f"no ranking (the judge does not tell the {GATE} input from the recorded inputs)"
-    )
-    return pd.concat([ranked, untrusted]).sort_index()
+    for observation, part in planners.groupby("observation", sort=False):
+        out += stats.best_against_best(
+            part, (FLOWS, BASELINES), dict.fromkeys(part.family), "tip_mm", observation=observation
+        )
+    table = stats.judged(out, ("observation",), in_family=[row["family"] in set(passed) for row in out])
+    return table.assign(judge_passes=table.family.isin(set(passed)))
 
 
 ANSWERS = {  # notebook_12_answer in words, for the README and the results page (its answer is withdrawn)
@@ -429,11 +406,11 @@ def notebook_12_answer(rule: pd.DataFrame) -> str:
     """Does the trunk show notebook 12's pattern, a flow lower from the tip alone and not once
     every disk is seen? By the rule registered before any row: a flow is lower on a family where
     both intervals of ``flow_rule``'s difference lie below zero and the judge passed that family
-    (``holm_p`` is NaN on the others). No Holm family was registered: the one over all eight
+    (``lower`` is the flow there). No Holm family was registered: the one over all eight
     comparisons was added with 22 of the 33 paper cells computed (docs/assumptions.md), so it
     decides nothing here. "confirms" (a flow lower on some family from the tip alone, on none with
     every disk), "reverses" (the other way round), "both" (a flow lower either way) or "neither"."""
-    flow_lower = (rule.high < 0) & (rule.t_high < 0) & rule.holm_p.notna()
+    flow_lower = rule.lower == rule.a
     flows_lower = flow_lower.groupby(rule.observation).any()
     tip, disks = flows_lower.get("tip", False), flows_lower.get("disks", False)
     return {(True, False): "confirms", (False, True): "reverses", (True, True): "both"}.get((tip, disks), "neither")

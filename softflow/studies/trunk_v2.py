@@ -52,7 +52,7 @@ import pandas as pd
 from softflow import data
 from softflow.control.planning import Controller, SaturationWarning, recorded_range
 from softflow.data import recordings
-from softflow.models.specs import label
+from softflow.models.specs import BASELINES, FLOWS
 from softflow.profiles import FIXED_BUDGET, TrainConfig
 from softflow.store import cached_arrays
 from softflow.studies import ambiguity, judges, stats, trunk
@@ -61,7 +61,15 @@ from softflow.studies.study import Grid, recorded_cell_model, training_spec
 TRAINING_RUNS = ("random_1", "payload_100g", "payload_300g")
 HELD_OUT = trunk.HELD_OUT  # random_2, circles
 JUDGE_RUNS = ("random_1", *HELD_OUT)  # the unloaded runs: a judge of one is fitted on the others
-BASELINES, FLOWS = ("mlp", "lstm", "transformer"), ("rf", "rf-fwd", "rf-1", "rf-fwd-1")
+PLANNERS = (
+    "mlp",
+    "lstm",
+    "transformer",
+    "rf",
+    "rf-fwd",
+    "rf-1",
+    "rf-fwd-1",
+)  # the models the grid trains (their groups: models.specs)
 NAIVE = ("recorded", "training-mean")  # persistence is the perturbation "delay 1"
 REFEREE = (*NAIVE, *judges.perturbations())  # the cells that validate the judges: no model trains
 BLOCK = trunk.WINDOW_EVERY  # s: the judge-free scores per block of this length, one per window start
@@ -88,7 +96,7 @@ GRID = {
         seconds=30.0,
     ),
     "paper": TrunkV2Grid(
-        models=(*BASELINES, *FLOWS),
+        models=PLANNERS,
         seeds=(0, 1, 2),
         observations=("tip", "disks"),
         windows=(0.5, 1.0),
@@ -404,51 +412,39 @@ def spread(rows: pd.DataFrame) -> pd.DataFrame:
 
 def flow_rule(rows: pd.DataFrame) -> pd.DataFrame:
     """Per observation and family: the best flow against the best baseline (best by the judge-free
-    per-step error on that run), each judge's difference (mm) with its intervals and Holm p (one
-    family per judge), and the verdict by the registered rule (module docstring)."""
+    per-step error on that run), as each judge scores them (one row per judge, ``stats.judged``,
+    one Holm family per judge over the families it may judge, those with a ``resolution_mm``),
+    and ``rule_lower``, the side the registered rule ranks lower on that comparison (module
+    docstring: every judge ranks it lower, kept after Holm, by more than the resolution; NaN
+    where it ranks none), the same on each judge's row."""
     curve = resolution(rows)
     if curve.empty:
         return pd.DataFrame()
     referee = resolutions(curve).groupby("family")
     limit = referee.resolution_mm.max().where(referee.trusted.all())  # NaN where a judge may not judge
-    out = []
     planners = rows[~rows.model.isin(REFEREE)]
-    for (observation, family), part in planners.groupby(["observation", "family"], sort=False):
-        means = part.groupby("model").u_error_deg.mean()
-        flows, baselines = means.reindex(FLOWS).dropna(), means.reindex(BASELINES).dropna()
-        if flows.empty or baselines.empty:
-            continue
-        flow, baseline = flows.idxmin(), baselines.idxmin()
-        row = dict(observation=observation, family=family, best_flow=flow, best_baseline=baseline)
-        for column in JUDGED:
-            row |= {f"{column[:-3]}_{k}": v for k, v in _compare(part, flow, baseline, family, column).items()}
-        out.append(row | dict(resolution_mm=limit.get(family, np.nan)))
-    table = pd.DataFrame(out)
+    tables = []
+    for column in JUDGED:
+        out = []
+        for observation, part in planners.groupby("observation", sort=False):
+            picked = dict(by="u_error_deg", judge=column[:-3], observation=observation)
+            out += stats.best_against_best(part, (FLOWS, BASELINES), dict.fromkeys(part.family), column, **picked)
+        judged = [np.isfinite(limit.get(row["family"], np.nan)) for row in out]
+        tables.append(stats.judged(out, ("judge", "observation"), in_family=judged, level=1 - LEVEL_P))
+    table = pd.concat(tables, ignore_index=True)
     if table.empty:
         return table
-    judged = table.resolution_mm.notna()
-    for kind in judges.KINDS:  # one Holm family per judge: its comparisons on the families it may judge
-        table[f"{kind}_holm_p"] = np.nan
-        table.loc[judged, f"{kind}_holm_p"] = stats.holm(table.loc[judged, f"{kind}_p"].to_numpy())
-    table["verdict"] = [_verdict(row) if trusted else UNJUDGED for trusted, (_, row) in zip(judged, table.iterrows())]
-    return table
+    table["resolution_mm"] = table.family.map(limit)
+    rule = {key: rule_lower(judges_rows) for key, judges_rows in table.groupby(["observation", "family"], sort=False)}
+    return table.assign(rule_lower=[rule[key] for key in zip(table.observation, table.family)])
 
 
-UNJUDGED = "not judged (a judge separates no perturbation here, or rates a known-worse input below the recorded)"
-
-
-def _verdict(row: pd.Series) -> str:
-    """The registered rule on one comparison: "flow lower", "baseline lower" or not resolved."""
-    sides = set()
-    for kind in judges.KINDS:
-        low, high, t_low, t_high = (row[f"{kind}_{k}"] for k in ("low", "high", "t_low", "t_high"))
-        side = 1 if low > 0 and t_low > 0 else -1 if high < 0 and t_high < 0 else 0
-        if side == 0 or not row[f"{kind}_holm_p"] < LEVEL_P or not abs(row[f"{kind}_difference"]) > row.resolution_mm:
-            return "not resolved by the judges"
-        sides.add(side)
-    if len(sides) > 1:
-        return "not resolved by the judges"
-    return f"{label(row.best_flow)} lower" if sides == {-1} else f"{label(row.best_baseline)} lower"
+def rule_lower(judged: pd.DataFrame):
+    """The registered rule on one comparison, from its judges' rows of ``flow_rule``: the side
+    every judge ranks lower, kept after Holm, by more than the resolution; None where one does
+    not, or where they disagree."""
+    sides = judged.lower.where(judged.kept_after_holm & (judged.estimate.abs() > judged.resolution_mm))
+    return sides.iloc[0] if sides.notna().all() and sides.nunique() == 1 else None
 
 
 ANSWERS = {
@@ -467,8 +463,7 @@ def notebook_12_answer(rule: pd.DataFrame) -> str:
     """The registered answer from ``flow_rule``'s verdicts (module docstring)."""
     if rule.empty:
         return "not resolved"
-    flow_lower = rule.apply(lambda r: r.verdict == f"{label(r.best_flow)} lower", axis=1)
-    resolved = rule.verdict.str.endswith(" lower")
+    flow_lower, resolved = rule.rule_lower == rule.a, rule.rule_lower.notna()
     tip, disks = (bool(flow_lower[rule.observation == o].any()) for o in ("tip", "disks"))
     if not resolved.any():
         return "not resolved"
