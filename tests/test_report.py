@@ -470,23 +470,23 @@ def write_page_inputs(profile):
 
 def test_claims_take_each_number_from_its_csv(profile):
     write_page_inputs(profile)
-    table = report.claims(profile)
-    best = table.loc["Best RF variant against the best baseline (shapes / random)"]
+    items = {
+        item.split("**")[1]: item.split("**: ", 1)[1]
+        for item in " ".join(report.claims_list(profile).split("\n  ")).split("\n")
+    }
+    best = items["Best RF variant against the best baseline (shapes / random)"]
     # the change from the table1 study's 3-seed means (notebook 08), not from seed 0's Table I:
     # shapes 4.6 against 5.6 mm, ranked; random 14.1 against 15.6 mm, ranked by the bootstrap alone
-    assert best.ours == "18 % lower / -10 %, no ranking"
-    said = best["what the measurements say"]
-    assert "over 3 seeds" in said and "shape: -1.00 mm [-1.13, -0.87] (t: [-1.00, -1.00]), RF-FWD lower" in said
-    assert "random: -1.50 mm [" in said and "(t: [-7.85, +4.85]), no ranking" in said
-    assert "above the ILC floor of 0.10 / 0.10 mm (still improving at its last trial on 3 of 4 references" in said
-    assert table.loc["RF-FWD RMSE, shapes / random (mm)", "ours"] == "7.00 / 15.00"  # seed-0 Table I (write_results)
-    assert table.loc["Complex 3D: RF-FWD MAE u1 / u2 (N)", "ours"] == "0.015 / 0.030"  # RF-FWD's rows only
-    hardware = table.loc["Hardware mean RMSE, vertical / horizontal (mm)"]
-    assert hardware.ours == "6.00 / 23.35"
-    assert "without a reality gap 3.2 / 2.6 mm" in hardware["what the measurements say"]
-    assert "any other term at most 23.9 mm" in hardware["what the measurements say"]
-    assert "closed loop: 1.00 / 2.00 mm" in hardware["what the measurements say"]
-    assert table.loc["Inference per step, batch 1 (ms)", "ours"] == "0.161 (eager torch, N = 4)"
+    assert "ours 18 % lower / -10 %, no ranking;" in best
+    assert "over 3 seeds" in best and "shape: -1.00 mm [-1.13, -0.87] (t: [-1.00, -1.00]), RF-FWD lower" in best
+    assert "random: -1.50 mm [" in best and "(t: [-7.85, +4.85]), no ranking" in best
+    assert "above the ILC floor of 0.10 / 0.10 mm (still improving at its last trial on 3 of 4 references" in best
+    assert "ours 7.00 / 15.00;" in items["RF-FWD RMSE, shapes / random (mm)"]  # seed-0 Table I (write_results)
+    assert "ours 0.015 / 0.030;" in items["Complex 3D: RF-FWD MAE u1 / u2 (N)"]  # RF-FWD's rows only
+    hardware = items["Hardware mean RMSE, vertical / horizontal (mm)"]
+    assert "ours 6.00 / 23.35;" in hardware and "without a reality gap 3.2 / 2.6 mm" in hardware
+    assert "any other term at most 23.9 mm" in hardware and "closed loop: 1.00 / 2.00 mm" in hardware
+    assert "ours 0.161 (eager torch, N = 4);" in items["Inference per step, batch 1 (ms)"]
 
 
 def test_results_page_holds_every_table_and_section_and_only_existing_figures(profile, tmp_path):

@@ -56,6 +56,7 @@ EXPORTS = {
         "verdict_counts",
         "gap_sensitivity",
         "closed_loop_table",
+        "burst_models",
     ],
 }
 SUBMODULES = ["plots"]

@@ -7,12 +7,13 @@ from __future__ import annotations
 import textwrap
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from softflow.machine import description
 from softflow.profiles import Profile
 from softflow.report.provenance import commit, recorded_wall_times
-from softflow.report.sections import filled, regime_map_rows, rendered, sections, span, verdict
+from softflow.report.sections import environment, filled, regime_map_rows, rendered, sections, span, verdict
 from softflow.report.study_tables import (
     best_against_best,
     floor_progress,
@@ -67,107 +68,68 @@ FIGURES = [
 ]
 
 
-def claims(profile: Profile) -> pd.DataFrame:
-    """The paper's headline numbers beside ours, each with what the measurements say about a
-    gap (every number from a result CSV; notebook 08 for the intervals, floor and protocol).
-    The best-against-best row rests on the table1 study's seeds alone, its change and its
+def claims(profile: Profile) -> dict:
+    """The numbers the paper's headline claims are checked with (``templates/claims.md.j2``),
+    each from a result CSV (notebook 08 for the intervals, floor and protocol). The
+    best-against-best claim rests on the table1 study's seeds alone, its change and its
     difference alike."""
-    ours = our_table(profile)
     burst = read_result(profile, "stress_burst.csv").set_index("model").loc["rf-fwd"]
     complex3d = read_result(profile, "stress_complex3d.csv").query("model == 'rf-fwd'")
-    twin = read_result(profile, "table3_twin.csv").set_index("reference").loc["mean"]
-    latency = read_result(profile, "euler_sweep.csv").set_index("steps").latency_ms.loc[4]
     gaps = read_result(profile, "twin_sensitivity.csv")
     gaps = gaps.set_index(gaps.columns[0])  # the CSV's index column: the gap variant
-    other = gaps.drop(index=["no gap", "typical gap", "2 x youngs_modulus", "2 x density"]).horizontal.max()
+    doubled = ["no gap", "typical gap", "2 x youngs_modulus", "2 x density"]
     closed = read_result(profile, "10_table3_extended.csv").set_index(["gravity", "reference"]).xs("mean", level=1)
     summary = read_result(profile, "08_table1_ci.csv").set_index(["family", "model"])["mean"]
     seeds = read_sweep(profile, "table1")
-    differences = best_against_best(seeds)
     improving, references = floor_progress(seeds, TABLE1[profile.name].ilc_iterations)
     protocol = read_result(profile, "08_protocol.csv").set_index("condition")
     models = summary.drop(index=FLOOR, level="model")
-    ratio = {f: models.loc[f] / summary.loc[(f, FLOOR)] for f in ("shape", "random")}
-    change = " / ".join(
-        _change_text(100 * (summary.loc[(d.family, d.a)] / summary.loc[(d.family, d.b)] - 1), isinstance(d.lower, str))
-        for d in differences.itertuples()
+    families = ("shape", "random")
+    return dict(
+        best=[
+            dict(
+                d._asdict(),
+                change=100 * (summary.loc[(d.family, d.a)] / summary.loc[(d.family, d.b)] - 1),
+                ranked=isinstance(d.lower, str),
+                verdict=verdict(d),
+            )
+            for d in best_against_best(seeds).itertuples()
+        ],
+        seeds=seeds.loc[seeds.model != FLOOR, "seed"].nunique(),
+        above_floor={f: span_of(models.loc[f] / summary.loc[(f, FLOOR)]) for f in families},
+        floor={f: summary.loc[(f, FLOOR)] for f in families},
+        improving=improving,
+        references=references,
+        rf_fwd=our_table(profile).loc["rf-fwd"],
+        protocol=dict(
+            flows=span_of(protocol.reindex(columns=RF_FAMILY).stack()),
+            baselines=span_of(protocol.reindex(columns=BASELINES).stack()),
+        ),
+        burst=burst,
+        complex3d=dict(u1=complex3d.mae_u1.mean(), u2=complex3d.mae_u2.mean()),
+        twin=read_result(profile, "table3_twin.csv").set_index("reference").loc["mean"],
+        gaps=dict(
+            no_gap=gaps.loc["no gap"],
+            youngs_modulus=gaps.loc["2 x youngs_modulus", "horizontal"],
+            density=gaps.loc["2 x density", "horizontal"],
+            other=gaps.drop(index=doubled).horizontal.max(),
+        ),
+        closed=closed["closed-ilc-calibrated"],
+        latency=read_result(profile, "euler_sweep.csv").set_index("steps").latency_ms.loc[4],
     )
-    paired = "; ".join(
-        f"{d.family}: {d.estimate:+.2f} mm [{d.low:+.2f}, {d.high:+.2f}] (t: [{d.t_low:+.2f}, {d.t_high:+.2f}]), "
-        f"{verdict(d)}"
-        for d in differences.itertuples()
-    )
-    baselines = protocol.reindex(columns=BASELINES)
-    spread = protocol.reindex(columns=RF_FAMILY).stack()
-    rows = [
-        (
-            "Best RF variant against the best baseline (shapes / random)",
-            "> 50 % lower / > 50 % lower",
-            change,
-            f"the change and the difference of the means over {seeds.loc[seeds.model != FLOOR, 'seed'].nunique()} "
-            f"seeds and the references (notebook 08), best RF variant - best baseline, {paired}; every model is "
-            f"{ratio['shape'].min():.0f}-{ratio['shape'].max():.0f}x (shapes) and {ratio['random'].min():.0f}-"
-            f"{ratio['random'].max():.0f}x (random) above the ILC floor of {summary.loc[('shape', FLOOR)]:.2f} / "
-            f"{summary.loc[('random', FLOOR)]:.2f} mm (still improving at its last trial on {improving} of "
-            f"{references} references: at most that)",
-        ),
-        (
-            "RF-FWD RMSE, shapes / random (mm)",
-            "5.0 / 3.5",
-            f"{ours.loc['rf-fwd', 'shape_mm']:.2f} / {ours.loc['rf-fwd', 'random_mm']:.2f}",
-            f"the protocol alone moves the shape RMSE of the RF family over "
-            f"{spread.min():.1f}-{spread.max():.1f} mm and "
-            f"of the baselines over {baselines.min().min():.1f}-{baselines.max().max():.1f} mm (notebook 08)",
-        ),
-        (
-            "Burst circle: RF-FWD peak speed (m/s), y-z RMSE (mm, % L)",
-            "2.03, 20.65 (5.16 %)",
-            f"{burst.peak_speed:.2f}, {burst.rmse_yz_mm:.2f} ({burst.rmse_pct_L:.2f} %)",
-            f"our assumed circle (r = 0.15 m; the paper states no radius) with period >= 1.2 s asks for "
-            f"{burst.reference_peak_speed:.2f} m/s at most; the paper's 2.03 m/s needs a faster path (the paper "
-            f"also gives the same 20.65 mm for its simulated and its hardware burst)",
-        ),
-        (
-            "Complex 3D: RF-FWD MAE u1 / u2 (N)",
-            "0.027 / 0.033",
-            f"{complex3d.mae_u1.mean():.3f} / {complex3d.mae_u2.mean():.3f}",
-            f"{complex3d.mae_u1.mean() / 0.027:.1f}x / {complex3d.mae_u2.mean() / 0.033:.1f}x the paper's",
-        ),
-        (
-            "Hardware mean RMSE, vertical / horizontal (mm)",
-            "4.30 / 6.40",
-            f"{twin.vertical:.2f} / {twin.horizontal:.2f}",
-            f"a twin, not the robot: without a reality gap {gaps.loc['no gap', 'vertical']:.1f} / "
-            f"{gaps.loc['no gap', 'horizontal']:.1f} mm; horizontally the gap's E and rho errors dominate "
-            f"(doubling the E "
-            f"error gives {gaps.loc['2 x youngs_modulus', 'horizontal']:.1f} mm, the rho error "
-            f"{gaps.loc['2 x density', 'horizontal']:.1f} mm, any other term at most {other:.1f} mm; notebook 06); "
-            f"calibrated on an identification run and learnt across 5 repetitions in closed loop: "
-            f"{closed.loc['vertical', 'closed-ilc-calibrated']:.2f} / "
-            f"{closed.loc['horizontal', 'closed-ilc-calibrated']:.2f} mm "
-            f"(notebook 10)",
-        ),
-        (
-            "Inference per step, batch 1 (ms)",
-            "0.995",
-            f"{latency:.3f} (eager torch, N = 4)",
-            "a smaller network on a CPU; `Controller.step`, one compiled call, is faster still (README, Speed)",
-        ),
-    ]
-    return pd.DataFrame(rows, columns=["claim", "paper", "ours", "what the measurements say"]).set_index("claim")
 
 
-def claims_list(table: pd.DataFrame, width: int = 110) -> str:
-    """The claims as a list, one item each (the paper's number, ours, what the measurements say),
-    filled to ``width`` columns."""
+def span_of(values) -> tuple[float, float]:
+    return float(np.min(values)), float(np.max(values))
+
+
+def claims_list(profile: Profile, width: int = 110) -> str:
+    """The claims as a list (``templates/claims.md.j2``), one item each (the paper's number, ours,
+    what the measurements say), filled to ``width`` columns."""
+    text = environment().get_template("claims.md.j2").render(c=claims(profile), relative=relative)
     return "\n".join(
-        textwrap.fill(
-            f"- **{claim}**: the paper {row.paper}, ours {row.ours}; {row['what the measurements say']}.",
-            width,
-            subsequent_indent="  ",
-            break_on_hyphens=False,
-        )
-        for claim, row in table.iterrows()
+        textwrap.fill(" ".join(item.split()), width, subsequent_indent="  ", break_on_hyphens=False)
+        for item in text.strip().split("\n")
     )
 
 
@@ -257,11 +219,6 @@ def design_choices(profile: Profile) -> list[str]:
 def relative(lower_pct: float) -> str:
     """A reduction in percent as words: 12 -> '12 % lower', -5 -> '5 % higher'."""
     return f"{abs(lower_pct):.0f} % {'lower' if lower_pct >= 0 else 'higher'}"
-
-
-def _change_text(change_pct: float, ranked: bool) -> str:
-    """A change in percent: in words where a ranking is stated, else signed, with 'no ranking'."""
-    return relative(-change_pct) if ranked else f"{change_pct:+.0f} %, no ranking"
 
 
 def portability_section(profile: Profile) -> list[str]:
@@ -371,7 +328,7 @@ def results_page(profile: Profile, tables: dict, run_dir: Path) -> str:
         shown.append(section.figure)
     lines += machines_section(profile)
     lines += portability_section(profile)
-    lines += ["## The paper's claims, reproduced or not", "", claims_list(claims(profile)), ""]
+    lines += ["## The paper's claims, reproduced or not", "", claims_list(profile), ""]
     lines += design_choices(profile)
     lines += ["## Key figures", ""]
     lines += [
