@@ -73,16 +73,7 @@ WRITTEN = {
         f"{name}.csv": Written("07_comparison_tables.ipynb", "the result files above, beside the paper's numbers")
         for name in ("table1_tracking", "table2_inputs", "table3_hardware", "table4_literature")
     },
-    "09_ambiguity_per_step.csv": Written("09_where_flows_win.ipynb", "the ambiguity study's rows, per step"),
-    "09_ambiguity_tracking.csv": Written("09_where_flows_win.ipynb", "the ambiguity study's rows"),
-    "09_data_size.csv": Written("09_where_flows_win.ipynb", "the data_size study's rows"),
-    "09_data_size_per_step.csv": Written("09_where_flows_win.ipynb", "the data_size study's rows, per step"),
-    "10_latency.csv": Written("10_closed_loop.ipynb", "the closed_loop study's rows"),
-    "10_gap_sensitivity.csv": Written("10_closed_loop.ipynb", "the closed_loop study's rows"),
-    "10_burst_revolutions.csv": Written("10_closed_loop.ipynb", "the twin_burst study's rows"),
-    "10_burst_breaks.csv": Written("10_closed_loop.ipynb", "the twin_burst study's rows"),
     "10_identified.csv": Written("10_closed_loop.ipynb", "a simulated identification run through the camera"),
-    "11_fwd_lambda.csv": Written("11_consistency_weight.ipynb", "the fwd_lambda study's rows"),
     "11_fwd_lambda_diagnostics.csv": Written("11_consistency_weight.ipynb", "the fwd_lambda rows and forward.pt"),
     "12_checks.csv": Written("12_two_segment.ipynb", "the two-segment rod's simulated modes against closed forms"),
     "13_hysteresis.csv": Written("13_recorded_runs.ipynb", "the twin's simulated hysteresis loops"),
@@ -115,6 +106,15 @@ def _per_study_files() -> dict[str, StudyTable]:
             ("closed_loop",), study_tables.gap_sensitivity, writer="06_hardware_replay.ipynb"
         ),
         "08_differences.csv": StudyTable(("table1",), study_tables.best_against_best, index=False),
+        "09_data_size.csv": StudyTable(("data_size",), study_tables.data_size_table),
+        "09_data_size_per_step.csv": StudyTable(("data_size",), study_tables.data_size_per_step),
+        "09_ambiguity_per_step.csv": StudyTable(("ambiguity",), study_tables.ambiguity_per_step),
+        "09_ambiguity_tracking.csv": StudyTable(("ambiguity",), study_tables.ambiguity_tracking),
+        "10_latency.csv": StudyTable(("closed_loop",), study_tables.latency_table),
+        "10_gap_sensitivity.csv": StudyTable(("closed_loop",), study_tables.gap_modes_table),
+        "10_burst_revolutions.csv": StudyTable(("twin_burst",), study_tables.burst_revolutions),
+        "10_burst_breaks.csv": StudyTable(("twin_burst",), study_tables.burst_breaks),
+        "11_fwd_lambda.csv": StudyTable(("fwd_lambda",), study_tables.lambda_table),
         "09_data_size_effects.csv": StudyTable(("data_size",), study_tables.size_effects, index=False),
         "09_regime_map.csv": StudyTable(
             ("ambiguity", "two_segment"),

@@ -18,8 +18,9 @@ from softflow.hardware.gap import GAP_TERMS
 from softflow.models.specs import BASELINES, FLOWS
 from softflow.report.tables import TABLE1_MODELS
 from softflow.studies import stats
-from softflow.studies.closed_loop import CAMERA_LATENCY, LOOP_MODES
+from softflow.studies.closed_loop import CAMERA_LATENCY, GAP_MODES, LOOP_MODES
 from softflow.studies.design import VARIANTS as DESIGN_VARIANTS
+from softflow.studies.stress import break_points
 from softflow.studies.study import FLOOR
 from softflow.studies.two_segment import FLOOR_OBSERVATION
 
@@ -149,10 +150,77 @@ def closed_loop_table(rows: pd.DataFrame) -> pd.DataFrame:
     return pd.concat([table, shapes]).sort_index(level=0, sort_remaining=False)
 
 
+def latency_table(rows: pd.DataFrame) -> pd.DataFrame:
+    """The closed loop's mean RMSE (mm) over the shapes under the typical gap, per camera latency
+    and share of dropped frames, one column per configuration (notebook 10's robustness)."""
+    closed = rows[(rows.gap == "typical") & (rows["mode"] == "closed") & (rows.family == "shape")]
+    return closed.groupby(["gravity", "latency", "dropped"]).rmse_mm.mean().unstack("gravity")
+
+
+def gap_modes_table(rows: pd.DataFrame) -> pd.DataFrame:
+    """RMSE (mm) on each shape under each reality gap, per configuration and each loop mode of
+    ``GAP_MODES``, at the nominal camera (the no-gap rows are notebook 06's)."""
+    shown = rows[
+        (rows.family == "shape")
+        & (rows.latency == CAMERA_LATENCY)
+        & (rows.dropped == 0)
+        & rows["mode"].isin(GAP_MODES)
+        & (rows.gap != "none")
+    ]
+    return shown.pivot_table(index="gap", columns=["gravity", "mode"], values="rmse_mm", sort=False)
+
+
+def burst_revolutions(rows: pd.DataFrame) -> pd.DataFrame:
+    """The twin_burst study's y-z RMSE (mm) per configuration and revolution of the burst circle,
+    one column per loop mode, with the reference's speed and the mode lowest there."""
+    keys, modes = ["gravity", "revolution", "period_s"], list(dict.fromkeys(rows["mode"]))
+    table = rows.pivot_table(index=keys, columns="mode", values="rmse_yz_mm", sort=False)[modes]
+    table.insert(0, "reference_speed", rows.groupby(keys, sort=False).reference_speed.first())
+    return table.assign(lower=table[modes].idxmin(axis=1))
+
+
+def burst_models(rows: pd.DataFrame) -> pd.DataFrame:
+    """The twin_burst rows with each loop mode and configuration as one "model" ("closed,
+    vertical"), as ``stress.break_points`` and the break curve read them."""
+    return rows.assign(model=rows["mode"] + ", " + rows.gravity)
+
+
+def burst_breaks(rows: pd.DataFrame) -> pd.DataFrame:
+    """Where each loop mode and configuration breaks on the burst (``stress.break_points``)."""
+    return break_points(burst_models(rows))
+
+
 # ---------------------------------------------------------------------------- where a flow wins (notebook 09)
 def data_size_table(rows: pd.DataFrame, value: str = "rmse_mm") -> pd.DataFrame:
     """Mean of ``value`` with its interval per model, training episodes and reference family."""
     return stats.summarise(rows, value, by=("model", "episodes", "family"))
+
+
+def data_size_per_step(rows: pd.DataFrame) -> pd.DataFrame:
+    """The per-step u error on the held-out episodes (N, mean over seeds) per size, one column per model."""
+    return per_step_table(rows, ("episodes", "model"), ("u_rmse_test",)).unstack("model")
+
+
+# The ambiguity study's per-step measures, one per trained model (u in N).
+AMBIGUITY_STEP = (
+    "conditional_spread",
+    "conditional_spread_floor",
+    "u_rmse_test",
+    "u_rmse_draw",
+    "u_rmse_mean_of_draws",
+    "draw_spread",
+    "spread_error_spearman",
+)
+
+
+def ambiguity_per_step(rows: pd.DataFrame) -> pd.DataFrame:
+    """The ambiguity study's per-step measures present (``AMBIGUITY_STEP``) per variant and model."""
+    return per_step_table(rows, ("variant", "model"), [c for c in AMBIGUITY_STEP if c in rows])
+
+
+def ambiguity_tracking(rows: pd.DataFrame) -> pd.DataFrame:
+    """The ambiguity study's tracking RMSE with its interval per variant, family, model and plan."""
+    return stats.summarise(rows, "rmse_mm", by=("variant", "family", "model", "plan"))
 
 
 def per_step_table(rows: pd.DataFrame, by, values) -> pd.DataFrame:
@@ -236,6 +304,11 @@ def size_effects(rows: pd.DataFrame) -> pd.DataFrame:
                 for family in ("shape", "random")
             ]
     return stats.judged(out, ("episodes", "effect"))
+
+
+def lambda_table(rows: pd.DataFrame) -> pd.DataFrame:
+    """fwd_lambda's tracking RMSE with its interval per consistency weight and family."""
+    return stats.summarise(rows, "rmse_mm", by=("consistency", "family"))
 
 
 def lambda_decision(rows: pd.DataFrame, default: float = 1.0) -> tuple[pd.DataFrame, float]:
