@@ -13,7 +13,7 @@ PROFILE ?= paper
 BENCH_PROFILE ?= ci
 NOTEBOOKS := $(sort $(wildcard notebooks/[0-9]*.ipynb))
 
-.PHONY: venv test lint reproduce readme site loop-parts study bench bench-setup bench-reproduce portability lab clean lock strip
+.PHONY: venv test lint reproduce readme site loop-parts loop-bound study bench bench-setup bench-reproduce portability lab clean lock strip
 
 venv: $(STAMP)
 
@@ -100,6 +100,11 @@ site: $(STAMP)
 # The loop's filter and predictors on the ASL trunk's held-out run (about a minute)
 loop-parts: $(STAMP)
 	$(PY) -m softflow.studies.trunk_loop
+
+# How much of the open loop's error any feedback through the rig's delay can remove, on the loop
+# study's pilot (about 3 minutes)
+loop-bound: $(STAMP)
+	$(PY) -m softflow.studies.loop_bound
 
 # Every cell of the studies, recomputed (not read from figures/sweeps/) and cached in
 # data/sweeps/, so an interrupted run resumes; SCHEDULER_FILE=s.json runs them on your cluster.

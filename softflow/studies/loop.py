@@ -144,7 +144,7 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
         warnings.simplefilter("ignore", SaturationWarning)
         _, padded = pad_plans([planner.plan(r.states) for r in scored])  # (R, T_max, C) mm
     looped = loop_of(Controller(model, cell["model"], **options), data)  # the recordings' limits, the workspace check
-    tracked = {"open": _open_loop(padded), "closed": _closed_loop(looped, scored)}
+    tracked = {"open": open_loop(padded, TRACKING_SEED), "closed": closed_loop(looped, scored, TRACKING_SEED)}
     rows = []
     for loop, (states, holding) in tracked.items():
         for r, reference in enumerate(scored):
@@ -163,21 +163,23 @@ def run(cell: dict, profile_name: str, device: str, workdir: Path, key: str) -> 
     return rows
 
 
-def _open_loop(padded: np.ndarray):
-    """The rig's tip states (R, T+1, 6) under the plans (R, T, C), row k sent at period k."""
-    rig = mocap.MocapRig(TRACKED_GAP, gravity=GRAVITY, batch=len(padded), seed=TRACKING_SEED)
+def open_loop(padded: np.ndarray, seed: int):
+    """The rig's tip states (R, T+1, 6) across the tracking gap under the plans (R, T, C), row k
+    sent at period k (``seed``: the camera's draws), and which periods held (none)."""
+    rig = mocap.MocapRig(TRACKED_GAP, gravity=GRAVITY, batch=len(padded), seed=seed)
     for commands in padded.transpose(1, 0, 2):
         rig.read()
         rig.send(commands)
     return np.stack(rig.states, 1), np.zeros(padded.shape[:2], bool)
 
 
-def _closed_loop(loop, scored: list[Reference]):
-    """The rig's tip states (R, T+1, 6) under the loop's graph, each reference's states now, d and
-    d + 1 periods ahead given every period (its last state once it ends), and which periods held."""
+def closed_loop(loop, scored: list[Reference], seed: int):
+    """The rig's tip states (R, T+1, 6) across the tracking gap under the loop's graph, each
+    reference's states now, d and d + 1 periods ahead given every period (its last state once it
+    ends), and which periods held (``seed``: the camera's draws)."""
     T = max(r.n_steps for r in scored)
     wanted = np.stack([r.states[np.minimum(np.arange(T + loop.period.delay + 2), r.n_steps)] for r in scored])
-    rig = mocap.MocapRig(TRACKED_GAP, gravity=GRAVITY, batch=len(scored), seed=TRACKING_SEED)
+    rig = mocap.MocapRig(TRACKED_GAP, gravity=GRAVITY, batch=len(scored), seed=seed)
     graph = GraphLoop(loop, batch=len(scored))
     holding = []
     for t in range(T):
