@@ -73,6 +73,7 @@ FLAGS = {
     "pass delay=": "pass --delay",
     "pass other fractions (e.g. (1/3, 1/3) for three)": "pass --fractions (e.g. --fractions 0.34,0.34 for three)",
     "(max_gap = ": "(--max-gap ",
+    "than max_acceleration explains": "than --max-acceleration explains",
     "load_dataset(..., split_at_gaps=True)": "--split-at-gaps",
     "(dropouts=False keeps them)": "(in Python, recordings.read(..., dropouts=False) keeps them)",
     "(or give noise and jerk)": "(record longer runs; in Python, or give noise and jerk)",
@@ -308,6 +309,13 @@ def _recording_options(group):
         help=f"the longest run of lost frames the smoother bridges (default {recordings.MAX_GAP:g} s)",
     )
     group.add_argument(
+        "--max-acceleration",
+        type=_positive("m/s^2"),
+        metavar="A",
+        help="the robot's largest acceleration: a frame further from its neighbours than it explains is a "
+        f"jump, a lost frame (default {recordings.JUMP_ACCELERATION:g} m/s^2; lower it for a slow robot and camera)",
+    )
+    group.add_argument(
         "--split-at-gaps",
         action="store_true",
         help="cut a recording at a longer run of lost frames than --max-gap instead of refusing it",
@@ -437,10 +445,13 @@ def _train(args):
     print("\n".join(map(str, paths)))
 
 
+# The recording options that take a value (the argparse group's), each part of a model's identity.
+RECORDING_OPTIONS = ("inputs", "tip", "dt", "delay", "max_gap", "max_acceleration")
+
+
 def _recording_flags(args) -> list[str]:
     """The options of ``_recording_options`` given on the command line."""
-    options = ("inputs", "tip", "dt", "delay", "max_gap")
-    given = [f"--{option.replace('_', '-')}" for option in options if getattr(args, option) is not None]
+    given = [f"--{option.replace('_', '-')}" for option in RECORDING_OPTIONS if getattr(args, option) is not None]
     flags = ["--split-at-gaps"] * args.split_at_gaps + ["--causal"] * args.causal
     return given + flags + ["--fractions"] * (args.fractions is not None)
 
@@ -455,6 +466,7 @@ def _recordings(args):
         delay=args.delay,
         fractions=args.fractions,
         max_gap=recordings.MAX_GAP if args.max_gap is None else args.max_gap,
+        max_acceleration=recordings.JUMP_ACCELERATION if args.max_acceleration is None else args.max_acceleration,
         split_at_gaps=args.split_at_gaps,
         causal=args.causal,
     )
@@ -477,7 +489,7 @@ def _recording_values(args) -> list[str]:
     """The options of ``_recording_options`` given, with their values, as they are typed."""
     typed = dict(inputs=args.inputs, tip=args.tip, fractions=args.fractions)
     out = []
-    for option in ("inputs", "tip", "dt", "delay", "max_gap", "fractions"):
+    for option in (*RECORDING_OPTIONS, "fractions"):
         value = getattr(args, option)
         if value is not None:
             text = ",".join(map(str, typed[option])) if option in typed else f"{value:g}"
@@ -495,6 +507,7 @@ def _check(args):
         inputs=args.inputs,
         tip=args.tip,
         max_gap=recordings.MAX_GAP if args.max_gap is None else args.max_gap,
+        max_acceleration=recordings.JUMP_ACCELERATION if args.max_acceleration is None else args.max_acceleration,
         fractions=args.fractions,
         delays=not args.no_delay,
     )
@@ -587,8 +600,7 @@ def _planned_shape(args):
 def _plan(args):
     if args.recordings is not None or args.reference is not None or args.check:
         return _plan_recorded(args)
-    options = ("inputs", "tip", "dt", "delay", "max_gap")
-    given = [f"--{option.replace('_', '-')}" for option in options if getattr(args, option) is not None]
+    given = [f"--{option.replace('_', '-')}" for option in RECORDING_OPTIONS if getattr(args, option) is not None]
     if given:
         raise ValueError(f"{', '.join(given)} describe recordings; they need --recordings DIR --reference PATH.csv")
     sim, reference, u = _planned_shape(args)

@@ -674,3 +674,21 @@ def test_a_constant_tip_column_is_refused_as_held_frames_with_the_reason(tmp_pat
     with pytest.raises(ValueError, match=r"'depth_m': fewer than two frames \(only row \d+\); the other \d+ repeat"):
         recordings.read(path, tip=["x_m", "y_m", "depth_m"], delay=0.0)
     assert recordings.read(path, tip=["x_m", "y_m"], delay=0.0).tip_columns == ("x_m", "y_m")
+
+
+def test_a_slow_robot_seen_by_a_slow_camera_loses_its_jumps_by_its_own_acceleration(tmp_path):
+    """At 12 Hz the default bound (50 m/s^2) lets a 20 mm one-frame jump of a slow planar arm
+    through (it would explain 0.17 m); the arm's own bound (1 m/s^2: 3.5 mm at 12 Hz) loses that
+    frame alone, as ``describe`` counts it."""
+    _, t, tip = slow_camera(tmp_path / "run.csv", 12)
+    tip[400, 0] += 0.02
+    table = pd.read_csv(tmp_path / "run.csv")
+    table.loc[table.x_m.notna().to_numpy().nonzero()[0][400], "x_m"] = tip[400, 0]
+    table.to_csv(tmp_path / "run.csv", index=False)
+    assert not recordings.lost_frames(t, tip, TIP_NAMES)[0].any()
+    lost, _, jumps = recordings.lost_frames(t, tip, TIP_NAMES, max_acceleration=1.0)
+    np.testing.assert_array_equal(np.flatnonzero(lost.any(1)), [400])
+    assert jumps.tolist() == [1, 1, 1]
+    assert recordings.describe(tmp_path, delays=False, max_acceleration=1.0).jumps.iloc[0] == "1"
+    with pytest.raises(ValueError, match="max_acceleration must be"):
+        recordings.read(tmp_path / "run.csv", max_acceleration=0.0)

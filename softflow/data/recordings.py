@@ -206,10 +206,12 @@ def _column_names(given, default, what: str, source: str, columns) -> tuple[str,
     return tuple(given)
 
 
-def _table(source: str, content: bytes, inputs=None, tip=None, dropouts: bool = True) -> _Table:
+def _table(
+    source: str, content: bytes, inputs=None, tip=None, dropouts: bool = True, max_acceleration=JUMP_ACCELERATION
+) -> _Table:
     """The file's time, input and tip columns, checked, with held and jumped frames lost (unless
-    not ``dropouts``); every error names the file, and the row and the column where there is one
-    (rows count from 0 below the header, as pandas does)."""
+    not ``dropouts``; ``lost_frames``); every error names the file, and the row and the column
+    where there is one (rows count from 0 below the header, as pandas does)."""
     frame = _frame(source, content)
     columns = [str(name) for name in frame.columns]
     frame.columns = columns
@@ -239,7 +241,10 @@ def _table(source: str, content: bytes, inputs=None, tip=None, dropouts: bool = 
     p = np.stack([_numbers(frame, name, source) for name in tip_columns], -1)  # (R, k)
     _check_tip_unit(p, tip_columns, source)
     frame_period = np.array([_median_step(times[np.isfinite(column)]) for column in p.T])  # (k,) s
-    lost, frozen, jumps = _judged(times, p, tip_columns) if dropouts else (np.zeros(p.shape, np.int8), 0, 0)
+    if dropouts:
+        lost, frozen, jumps = _judged(times, p, tip_columns, max_acceleration)
+    else:
+        lost, frozen, jumps = np.zeros(p.shape, np.int8), 0, 0
     p = np.where(lost > 0, np.nan, p)
     for i, name in enumerate(tip_columns):
         frames = np.flatnonzero(np.isfinite(p[:, i]))
@@ -335,7 +340,9 @@ def tip_points(tip_columns) -> list[list[int]]:
     return list(points.values())
 
 
-def lost_frames(times, tip, tip_columns) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def lost_frames(
+    times, tip, tip_columns, max_acceleration: float = JUMP_ACCELERATION
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Frames a tracker lost without saying so, per point (``tip_points``): (lost (R, k) bool,
     frozen (k,), jumps (k,)), the counts per tip column (its point's).
 
@@ -343,13 +350,14 @@ def lost_frames(times, tip, tip_columns) -> tuple[np.ndarray, np.ndarray, np.nda
     holding its last value; real noise never repeats all of them), unless the camera's
     resolution explains it (``_held``). Jump: among the frames left,
     one departing from the chord between its neighbouring frames by more than both a constant
-    JUMP_ACCELERATION would (a h1 h2 / 2 for steps h1, h2) and JUMP_NOISE times the point's median
+    acceleration of ``max_acceleration`` (m/s^2: the robot's largest, JUMP_ACCELERATION by
+    default) would (a h1 h2 / 2 for steps h1, h2) and JUMP_NOISE times the point's median
     departure, while the neighbours lie nearer each other than that departure (out and back)."""
-    why, frozen, jumps = _judged(times, tip, tip_columns)
+    why, frozen, jumps = _judged(times, tip, tip_columns, max_acceleration)
     return why > 0, frozen, jumps
 
 
-def _judged(times, tip, tip_columns) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _judged(times, tip, tip_columns, max_acceleration: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``lost_frames`` with why each frame was lost: (R, k) HELD, JUMPED or 0 (kept, or no frame)."""
     times, tip = np.asarray(times, float), np.asarray(tip, float)
     lost = np.zeros(tip.shape, np.int8)  # (R, k): 0 kept (or no frame), HELD or JUMPED
@@ -359,7 +367,7 @@ def _judged(times, tip, tip_columns) -> tuple[np.ndarray, np.ndarray, np.ndarray
         rows = np.flatnonzero(np.isfinite(point).all(1))  # the point's frames
         held = _held(point[rows])
         kept = rows[~held]
-        jumped = kept[1:-1][_jumped(times[kept], point[kept])]
+        jumped = kept[1:-1][_jumped(times[kept], point[kept], max_acceleration)]
         lost[np.ix_(rows[held], columns)] = HELD
         lost[np.ix_(jumped, columns)] = JUMPED
         frozen[columns], jumps[columns] = held.sum(), len(jumped)
@@ -388,7 +396,7 @@ def _held(point: np.ndarray) -> np.ndarray:
     return held
 
 
-def _jumped(t: np.ndarray, point: np.ndarray) -> np.ndarray:
+def _jumped(t: np.ndarray, point: np.ndarray, max_acceleration: float) -> np.ndarray:
     """Which inner frames of a point's frames (F, c) at times t (F,) jumped: (F-2,) bool."""
     if len(t) < 3:
         return np.zeros(max(len(t) - 2, 0), bool)
@@ -397,7 +405,7 @@ def _jumped(t: np.ndarray, point: np.ndarray) -> np.ndarray:
     chord = point[:-2] + share[:, None] * (point[2:] - point[:-2])  # (F-2, c)
     departure = np.linalg.norm(point[1:-1] - chord, axis=1)
     apart = np.linalg.norm(point[2:] - point[:-2], axis=1)
-    threshold = np.maximum(JUMP_ACCELERATION * before * after / 2, JUMP_NOISE * np.median(departure))
+    threshold = np.maximum(max_acceleration * before * after / 2, JUMP_NOISE * np.median(departure))
     return (departure > threshold) & (apart < departure)
 
 
@@ -444,7 +452,10 @@ def _judged_lost(why: np.ndarray, first_row: int) -> str:
     as the end of a refusal ("" where none was)."""
     parts = [
         f"rows {_spans(first_row + np.flatnonzero(why == code))} {reason}"
-        for code, reason in ((HELD, "repeat the frame before exactly (held)"), (JUMPED, "jumped for one frame"))
+        for code, reason in (
+            (HELD, "repeat the frame before exactly (held)"),
+            (JUMPED, "jumped for one frame (further than max_acceleration explains)"),
+        )
         if (why == code).any()
     ]
     return f"; judged lost there: {'; '.join(parts)} (dropouts=False keeps them)" if parts else ""
@@ -587,7 +598,7 @@ def _with_delay(recording: Recording, delay) -> Recording:
     return replace(recording, delay=seconds, delay_steps=steps)
 
 
-def _check_options(dt, max_gap, noise, jerk, delay=None) -> None:
+def _check_options(dt, max_gap, noise, jerk, delay=None, max_acceleration=JUMP_ACCELERATION) -> None:
     if dt is not None and not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
         raise ValueError(f"dt must be None (the commands' period) or a positive period in s; got {dt!r}")
     if not (isinstance(max_gap, (int, float)) and math.isfinite(max_gap) and max_gap > 0):
@@ -596,6 +607,10 @@ def _check_options(dt, max_gap, noise, jerk, delay=None) -> None:
         isinstance(delay, (int, float)) and not isinstance(delay, bool) and math.isfinite(delay) and delay >= 0
     ):
         raise ValueError(f"delay must be None (estimated) or an input-to-motion delay >= 0 in s; got {delay!r}")
+    if not (isinstance(max_acceleration, (int, float)) and math.isfinite(max_acceleration) and max_acceleration > 0):
+        raise ValueError(
+            f"max_acceleration must be the robot's largest acceleration, a positive m/s^2; got {max_acceleration!r}"
+        )
     check_levels(noise, jerk)
 
 
@@ -611,6 +626,7 @@ def read(
     dropouts: bool = True,
     delay: float | None = None,
     causal: bool = False,
+    max_acceleration: float = JUMP_ACCELERATION,
 ) -> Recording:
     """One recorded run (a CSV, gzip-compressed CSV or Parquet file) on a regular grid of period
     ``dt`` (s; default: the commands' period). ``inputs`` and ``tip`` name the columns (default:
@@ -619,14 +635,15 @@ def read(
     smoother bridges a run of lost frames up to ``max_gap`` s long, or up to BRIDGED_FRAMES lost
     frames of a camera slower than that. Held and jumped frames are lost frames (``lost_frames``;
     ``dropouts=False`` keeps every frame, e.g. for noise-free simulated data, whose still tip
-    repeats exactly). ``delay`` (s) is the
+    repeats exactly); a jump is judged against ``max_acceleration`` (m/s^2), the robot's largest
+    acceleration. ``delay`` (s) is the
     input-to-motion delay the recording carries (None: ``estimate_delay``); its arrays are never
     shifted, ``pairs()`` pairs them. ``causal``: the states are the smoother's filter run forward
     (each from the frames up to it: what a control loop knows then) instead of the smoother's. A
     bad file is a ValueError naming it, and the row and column where there is one."""
-    _check_options(dt, max_gap, noise, jerk, delay)
+    _check_options(dt, max_gap, noise, jerk, delay, max_acceleration)
     path = Path(path)
-    table = _table(str(path), _content(path, "the recording"), inputs, tip, dropouts)
+    table = _table(str(path), _content(path, "the recording"), inputs, tip, dropouts, max_acceleration)
     period = table.command_period if dt is None else dt
     return _with_delay(_resample(table, period, max_gap, noise, jerk, causal), delay)
 
@@ -739,6 +756,7 @@ def load_dataset(
     dropouts: bool = True,
     delay: float | None = None,
     causal: bool = False,
+    max_acceleration: float = JUMP_ACCELERATION,
     split_at_gaps: bool = False,
     episode_seconds: float | None = None,
     fractions=None,
@@ -754,7 +772,8 @@ def load_dataset(
     stretches). Each step is paired with the input sent ``delay`` s before
     (in whole periods: ``Dataset.delay_steps``); None: the median of the recordings' estimates
     (``estimate_delay``, kept in ``Dataset.delays``). ``causal``: states as ``read`` makes them
-    with it, what the loop of a model trained on them sees (``control.loop``). Then the
+    with it, what the loop of a model trained on them sees (``control.loop``); ``max_acceleration``
+    as ``read`` takes it. Then the
     recordings are cut into episodes of
     ``episode_seconds`` (default: the shortest recording; see ``episodes``). The split is by file,
     shuffled by ``seed``: every episode of a run lands in the same split (``Dataset.split_files``
@@ -764,7 +783,7 @@ def load_dataset(
     trains nothing: it is left out of every split, with a warning. The result is cached under
     ``data_dir`` (None: not cached) by the files' contents and these options, written atomically
     after every file was read, so a bad file leaves no cache."""
-    _check_options(dt, max_gap, noise, jerk, delay)
+    _check_options(dt, max_gap, noise, jerk, delay, max_acceleration)
     if episode_seconds is not None and not (
         isinstance(episode_seconds, (int, float)) and math.isfinite(episode_seconds) and episode_seconds > 0
     ):
@@ -792,12 +811,13 @@ def load_dataset(
         version=RECORDINGS_VERSION,
         revision=LOADER_REVISION,
         **({"causal": True} if causal else {}),  # the smoother's states keep the keys they always had
+        **({"max_acceleration": max_acceleration} if max_acceleration != JUMP_ACCELERATION else {}),  # and so
     )
 
     def compute() -> dict:
         shown = dict(unit="file", disable=None, leave=False)  # on a terminal only: minutes for a few long runs
         tables = [
-            _table(str(path), content, inputs, tip, dropouts)
+            _table(str(path), content, inputs, tip, dropouts, max_acceleration)
             for path, content in tqdm(list(zip(files, contents)), desc="reading recordings", **shown)
         ]
         for table in tables[1:]:
@@ -944,6 +964,7 @@ def describe(
     tip=None,
     max_gap: float = MAX_GAP,
     dropouts: bool = True,
+    max_acceleration: float = JUMP_ACCELERATION,
     fractions=None,
     seed: int = 0,
     delays: bool = True,
@@ -957,7 +978,7 @@ def describe(
     ``load_dataset`` puts it in with the same ``fractions`` and ``seed`` (a rest run in none), and
     why a file would be refused. A bad file is a row saying so, not an error: the report covers
     every file."""
-    _check_options(None, max_gap, None, None)
+    _check_options(None, max_gap, None, None, max_acceleration=max_acceleration)
     files = recording_files(paths_or_folder)
     rows, excited = [], []
     for path in tqdm(files, desc="recordings", unit="file", disable=not progress):
@@ -966,7 +987,7 @@ def describe(
             content = path.read_bytes()
             columns = [str(name) for name in _frame(str(path), content).columns]
             row["other_units"] = _other_units(columns, inputs or ())
-            table = _table(str(path), content, inputs, tip, dropouts)
+            table = _table(str(path), content, inputs, tip, dropouts, max_acceleration)
             row["other_units"] = _other_units(columns, table.input_columns)
         except (OSError, ValueError) as error:
             rows.append(row | dict(split="refused", problem=str(error)))
