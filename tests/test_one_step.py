@@ -37,11 +37,11 @@ def test_the_rules_on_rows_where_the_one_step_flow_keeps_its_parents_errors():
         }
     )
     tables = one_step.summarise(made)
-    parity = tables["parity"].set_index("model")
+    parity = tables["parity"].set_index("a")
     assert abs(parity.at["rf-1@1", "ratio"] - 0.82 / 0.8) < 1e-3
     assert parity.at["rf-1@1", "within_10_percent"] == "within"
     assert parity.at["rf-fwd-1@1", "within_10_percent"] == "outside"
-    collapse = tables["collapse"].set_index("model")
+    collapse = tables["collapse"].set_index("a")
     assert collapse.at["rf@1", "within_10_percent"] == "within"  # the collapse the theory predicts
     assert collapse.at["rf-fwd@1", "within_10_percent"] == "outside"
     win = tables["tip_win"].set_index("a")

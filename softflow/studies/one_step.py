@@ -134,12 +134,13 @@ def summarise(rows: pd.DataFrame) -> dict[str, pd.DataFrame]:
     return dict(rmse=rmse, parity=pd.DataFrame(parity), tip_win=win, collapse=pd.DataFrame(collapse))
 
 
-def _ratio_row(rod: str, family: str, model: str, other: str, interval: stats.Interval) -> dict:
+def _ratio_row(rod: str, family: str, a: str, b: str, interval: stats.Interval) -> dict:
+    """mean(a) / mean(b) with its interval, in the comparison schema's names (``stats.COMPARED``)."""
     return dict(
         rod=rod,
         family=family,
-        model=model,
-        other=other,
+        a=a,
+        b=b,
         ratio=interval.estimate,
         low=interval.low,
         high=interval.high,
