@@ -993,7 +993,6 @@ def describe(
             rows.append(row | dict(split="refused", problem=str(error)))
             continue
         points = tip_points(table.tip_columns)
-        frames = table.times[np.isfinite(table.tip[:, 0])]
         point_of = {i: _point_name(table.tip_columns, point) for point in points for i in point}
         gaps = list(  # per point, not per column: a point's columns are lost together
             dict.fromkeys(
@@ -1005,7 +1004,7 @@ def describe(
             rows=len(table.times),
             seconds=float(table.times[-1] - table.times[0]),
             command_hz=1 / table.command_period,
-            frame_hz=1 / float(np.median(np.diff(frames))) if len(frames) > 1 else np.nan,
+            frame_hz=1 / float(table.frame_period[0]),  # the camera's, its lost frames included
             points=", ".join(dict.fromkeys(point_of.values())),
             held=", ".join(str(int(table.frozen[point[0]])) for point in points),
             jumps=", ".join(str(int(table.jumps[point[0]])) for point in points),
