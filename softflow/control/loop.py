@@ -35,6 +35,7 @@ import onnx
 import torch
 from torch import nn
 
+from softflow.control.planning import input_box
 from softflow.control.step import Step, export_graph, real_time_session
 from softflow.data.dataset import Dataset
 from softflow.data.recordings import tip_points
@@ -67,9 +68,7 @@ class InputLimits:
         m = u.shape[-1]
         low, high = u.min((0, 1)), u.max((0, 1))
         if u_range is not None:
-            low, high = (np.broadcast_to(np.asarray(b, np.float64), (m,)).copy() for b in u_range)
-        if not (np.isfinite(low).all() and np.isfinite(high).all() and (low <= high).all()):
-            raise ValueError(f"u_range must be (low, high) with finite low <= high for each input; got {u_range!r}")
+            low, high = input_box(u_range, m)
         median = np.clip(np.median(u.reshape(-1, m), 0), low, high)
         safe = median if safe_input is None else np.asarray(safe_input, np.float64)
         if safe.shape != (m,) or not ((low <= safe) & (safe <= high)).all():

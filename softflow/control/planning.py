@@ -37,6 +37,15 @@ class SaturationWarning(UserWarning):
     """A plan asked for more than the actuator range and was clipped."""
 
 
+def input_box(u_range, m: int) -> tuple[np.ndarray, np.ndarray]:
+    """(low, high), (m,) each, from ``u_range`` (low, high), each a number or one per input; a
+    ValueError unless both are finite with low <= high for each input."""
+    low, high = (np.broadcast_to(np.asarray(b, np.float64), (m,)).copy() for b in u_range)
+    if not (np.isfinite(low).all() and np.isfinite(high).all() and (low <= high).all()):
+        raise ValueError(f"u_range must be (low, high) with low <= high for each input; got {u_range!r}")
+    return low, high
+
+
 class Controller:
     """A trained inverse model used open loop: ``plan`` maps references to actuation.
 
@@ -124,9 +133,7 @@ class Controller:
         self._low, self._high = np.full(m, -self.u_limit), np.full(m, self.u_limit)  # (m,) each
         self._range = f"the actuator range +-{self.u_limit:g} N"
         if u_range is not None:
-            low, high = (np.broadcast_to(np.asarray(b, np.float64), (m,)).copy() for b in u_range)
-            if not (np.isfinite(low).all() and np.isfinite(high).all() and (low <= high).all()):
-                raise ValueError(f"u_range must be (low, high) with low <= high for each input; got {u_range!r}")
+            low, high = input_box(u_range, m)
             self._low, self._high, self.u_limit = low, high, float(np.abs([low, high]).max())
             symmetric = (low == -high).all() and (high == high[0]).all()
             bounds = [f"{a:g} to {b:g}" for a, b in zip(low, high)]
