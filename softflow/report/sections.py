@@ -30,7 +30,7 @@ from softflow.report.study_tables import (
     with_ci,
 )
 from softflow.report.tables import BASELINES, LABELS, RF_FAMILY, computed_rows, markdown, read_result, read_sweep
-from softflow.studies import loop, one_step, trunk, trunk_v2
+from softflow.studies import loop, one_step, stats, trunk, trunk_v2
 from softflow.studies.catalogue import STUDIES
 from softflow.studies.study import FLOOR
 
@@ -142,10 +142,14 @@ def verdict(row, sides=None) -> str:
     return words if row.kept_after_holm else f"{words} (not after Holm)"
 
 
+def numbers(row) -> dict:
+    """A comparison's estimate and bootstrap interval as the partials print them."""
+    return dict(mm=f"{row.estimate:+.2f}", interval=f"[{row.low:+.2f}, {row.high:+.2f}]")
+
+
 def difference(row, sides=None) -> dict:
-    """A verdict table's comparison as the partials read it: numbers rounded as printed, and its
-    words (``verdict``)."""
-    return dict(mm=f"{row.estimate:+.2f}", interval=f"[{row.low:+.2f}, {row.high:+.2f}]", verdict=verdict(row, sides))
+    """A verdict table's comparison as the partials read it: ``numbers`` and its words (``verdict``)."""
+    return dict(numbers(row), verdict=verdict(row, sides))
 
 
 def compared_text(table: pd.DataFrame, sides=None) -> list[str]:
@@ -225,7 +229,7 @@ def regime_map_rows(profile: Profile) -> pd.DataFrame:
 def ambiguity_section(profile: Profile) -> Section:
     regimes = regime_map(regime_map_rows(profile))
     tracked = regimes[regimes.family.isin(("shape", "random"))]
-    sides = [-1 if row.lower == row.a else 1 if row.lower == row.b else 0 for row in tracked.itertuples()]
+    sides = [stats.lower_side(row) for row in tracked.itertuples()]
 
     def named(variant: str) -> tuple[str, str]:
         part = tracked[tracked.variant == variant].sort_values(
@@ -276,7 +280,7 @@ def fwd_lambda_section(profile: Profile) -> Section:
     decision, chosen = lambda_decision(read_sweep(profile, "fwd_lambda"))
     context = dict(chosen=None if chosen == 1.0 else f"{chosen:g}")
     shown = decision.assign(
-        compared=[f"{row.estimate:+.2f} [{row.low:+.2f}, {row.high:+.2f}]" for row in decision.itertuples()],
+        compared=["{mm} {interval}".format(**numbers(row)) for row in decision.itertuples()],
         consistency=decision.a,
     )
     table = shown.pivot(index="consistency", columns="family", values="compared")[["shape", "random"]]

@@ -469,8 +469,7 @@ def verdict_counts(tables: dict) -> pd.DataFrame:
         table = table if families is None else table[table["family"].isin(families)]
         counts = np.zeros(3, int)
         for row in table.itertuples():
-            bootstrap, t = stats.Interval(np.nan, row.low, row.high), stats.Interval(np.nan, row.t_low, row.t_high)
-            counts += [1, stats.ranking(bootstrap) != 0, stats.ranking(bootstrap, t) != 0]
+            counts += [1, stats.ranking(stats.Interval(np.nan, row.low, row.high)) != 0, stats.interval_side(row) != 0]
         out[label] = dict(zip(("comparisons", "bootstrap alone", "bootstrap and t"), counts))
     table = pd.DataFrame.from_dict(out, orient="index").rename_axis("verdicts")
     return pd.concat([table, table.sum().rename("all").to_frame().T.rename_axis("verdicts")])
@@ -574,10 +573,7 @@ def recorded_model_rule(rows: pd.DataFrame, family: str = "shape", value: str = 
         most = part[part["runs"] == part["runs"].max()]
         out += stats.best_against_best(most, (FLOWS, BASELINES), (family,), value, gravity=gravity, gap=gap)
     table = stats.judged(out, ("gravity", "gap"))
-    sides = {
-        (row.gravity, row.gap): -1 if row.lower == row.a else 1 if row.lower == row.b else 0
-        for row in table.itertuples()
-    }
+    sides = {(row.gravity, row.gap): stats.lower_side(row) for row in table.itertuples()}
     changes = {}
     for gravity in table.gravity:
         both = sides.get((gravity, "friction"), 0) * sides.get((gravity, "typical"), 0)

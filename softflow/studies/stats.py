@@ -229,6 +229,17 @@ def compared(rows: pd.DataFrame, a, b, family: str, value: str = "rmse_mm") -> d
     )
 
 
+def interval_side(row) -> int:
+    """``ranking`` of a comparison's (a row with ``COMPARED``'s columns) two intervals: -1 where
+    both put a lower, +1 where both put b lower, else 0."""
+    return ranking(Interval(np.nan, row.low, row.high), Interval(np.nan, row.t_low, row.t_high))
+
+
+def lower_side(row) -> int:
+    """A judged comparison's (``judged``) ranking as a side: -1 where a is lower, +1 where b, else 0."""
+    return -1 if row.lower == row.a else 1 if row.lower == row.b else 0
+
+
 def judged(comparisons, keys=(), in_family=None, level: float = LEVEL) -> pd.DataFrame:
     """A study's comparisons (dicts or a frame with ``keys`` and ``COMPARED``'s columns) as one
     verdict table: ``keys`` then ``COMPARISON``'s columns. The comparisons ``in_family`` (a boolean
@@ -243,10 +254,7 @@ def judged(comparisons, keys=(), in_family=None, level: float = LEVEL) -> pd.Dat
     table["holm_p"] = np.nan
     if member.any():
         table.loc[member, "holm_p"] = holm(table.loc[member, "p"].to_numpy(float))
-    sides = [
-        ranking(Interval(np.nan, row.low, row.high), Interval(np.nan, row.t_low, row.t_high)) if inside else 0
-        for inside, row in zip(member, table.itertuples())
-    ]
+    sides = [interval_side(row) if inside else 0 for inside, row in zip(member, table.itertuples())]
     table["lower"] = [
         row.a if side < 0 else row.b if side > 0 else None for side, row in zip(sides, table.itertuples())
     ]

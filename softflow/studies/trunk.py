@@ -367,11 +367,7 @@ def judge_check(rows: pd.DataFrame) -> pd.DataFrame:
         ],
         columns=stats.COMPARED,
     )
-    higher = [
-        stats.ranking(stats.Interval(np.nan, row.low, row.high), stats.Interval(np.nan, row.t_low, row.t_high)) > 0
-        for row in table.itertuples()
-    ]
-    return table.assign(tells_apart=higher)
+    return table.assign(tells_apart=[stats.interval_side(row) > 0 for row in table.itertuples()])
 
 
 def flow_rule(rows: pd.DataFrame) -> pd.DataFrame:

@@ -61,15 +61,8 @@ from softflow.studies.study import Grid, recorded_cell_model, training_spec
 TRAINING_RUNS = ("random_1", "payload_100g", "payload_300g")
 HELD_OUT = trunk.HELD_OUT  # random_2, circles
 JUDGE_RUNS = ("random_1", *HELD_OUT)  # the unloaded runs: a judge of one is fitted on the others
-PLANNERS = (
-    "mlp",
-    "lstm",
-    "transformer",
-    "rf",
-    "rf-fwd",
-    "rf-1",
-    "rf-fwd-1",
-)  # the models the grid trains (their groups: models.specs)
+# The models the grid trains (their groups: models.specs).
+PLANNERS = ("mlp", "lstm", "transformer", "rf", "rf-fwd", "rf-1", "rf-fwd-1")
 NAIVE = ("recorded", "training-mean")  # persistence is the perturbation "delay 1"
 REFEREE = (*NAIVE, *judges.perturbations())  # the cells that validate the judges: no model trains
 BLOCK = trunk.WINDOW_EVERY  # s: the judge-free scores per block of this length, one per window start
